@@ -1,0 +1,153 @@
+"""The ``studio`` command.
+
+The argument parser is the CLI contract of DESIGN.md §2 and lives here, in one place; each command's
+work is done by ``studio.commands.<name>.run(args) -> int``, imported only when that command runs so
+that ``studio --help`` stays fast and light.
+
+User errors (:class:`studio.errors.StudioError`) print one line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+
+from studio import __version__
+from studio.errors import StudioError
+
+__all__ = ["build_parser", "main"]
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = text.lower().split("x")
+        size = int(w), int(h)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 1920x960, got '{text}'") from None
+    if size[0] <= 0 or size[1] <= 0:
+        raise argparse.ArgumentTypeError(f"image size must be positive, got '{text}'")
+    return size
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="studio",
+        description="Panoramic People Studio: people's positions from 360° camera + 2D laser recordings.",
+    )
+    parser.add_argument("--version", action="version", version=f"studio {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser("demo", help="label the bundled recording, evaluate it, write a Rerun recording")
+    p.add_argument("--out", default="runs/demo", help="output run directory (default: runs/demo)")
+
+    p = sub.add_parser("simulate", help="write a synthetic recording with exact ground truth")
+    p.add_argument("--scenario", required=True, help="static | moving | rooms (and calib-* scenarios)")
+    p.add_argument("--seconds", type=_positive_float, default=None, help="duration (default: the scenario's)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same recording)")
+    p.add_argument("--out", required=True, help="output directory")
+
+    p = sub.add_parser("inspect", help="topics, counts, rates, TF frames and sync statistics of a recording")
+    p.add_argument("recording", help="ROS1 .bag, ROS2 bag directory / .db3 / .mcap, or plain MCAP")
+    p.add_argument("--rig", default=None, help="rig.yaml: also report frame synchronisation for this rig")
+
+    p = sub.add_parser("label", help="auto-label people's positions and identities in a recording")
+    p.add_argument("recording")
+    p.add_argument("--rig", required=True, help="rig.yaml describing the sensors")
+    p.add_argument("--out", required=True, help="run directory to write")
+    p.add_argument("--method", choices=["studio", "thesis"], default="studio")
+    p.add_argument("--sources", choices=["both", "laser", "camera"], default="both")
+    p.add_argument("--image-detector", default=None, help="detector name or a YOLO .onnx file")
+    p.add_argument("--laser-detector", default=None, help="detector name or a model file")
+    p.add_argument("--no-rrd", action="store_true", help="do not write RUN/recording.rrd")
+    p.add_argument("--export-frames", action="store_true", help="also write the labeled panoramas as JPEG")
+
+    p = sub.add_parser("evaluate", help="compare labels with ground truth (P/R/F1, CLEAR MOT, IDF1, HOTA)")
+    p.add_argument("pred", help="predicted labels (.yaml thesis format or .jsonl)")
+    p.add_argument("gt", help="ground truth (.yaml or .jsonl)")
+    p.add_argument("--radius", type=_positive_float, default=0.2, help="match radius in metres (default 0.2)")
+    p.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
+
+    p = sub.add_parser("view", help="open a run in the Rerun viewer with a blueprint")
+    p.add_argument("run", help="run directory or .rrd file")
+    p.add_argument("--blueprint", default="review", help="review | calibration | compare")
+    p.add_argument("--web", action="store_true", help="serve the web viewer instead of the native one")
+    p.add_argument("--screenshot", default=None, help="render headless and save a PNG screenshot")
+
+    p = sub.add_parser("annotate", help="correct ground truth in the browser (127.0.0.1)")
+    p.add_argument("run", help="run directory")
+    p.add_argument("--port", type=int, default=8765)
+
+    p = sub.add_parser("calibrate", help="laser ↔ panorama calibration")
+    csub = p.add_subparsers(dest="calib_command", metavar="SUBCOMMAND", required=True)
+    c = csub.add_parser("extrinsics", help="fit the camera pose from x,y,z,u,v correspondences")
+    c.add_argument("--correspondences", required=True, help="CSV with columns x,y,z,u,v")
+    c.add_argument("--image-size", type=_image_size, required=True, help="panorama size WxH")
+    c.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
+    c.add_argument("--json", default=None, help="also write the errors as JSON")
+    c.add_argument("--out", required=True, help="calib.yaml to write")
+    c = csub.add_parser("project", help="project x,y,z points into the panorama")
+    c.add_argument("--rig", required=True, help="rig.yaml or calib.yaml")
+    c.add_argument("--points", required=True, help="CSV with columns x,y,z")
+    c.add_argument("--image-size", type=_image_size, required=True, help="panorama size WxH")
+    c.add_argument("--out", required=True, help="CSV of u,v to write")
+
+    p = sub.add_parser("detect-image", help="run the image people detector alone on panoramas")
+    p.add_argument("panoramas", nargs="+", help="equirectangular images")
+    p.add_argument("--out", required=True, help="JSONL file to write")
+    p.add_argument("--image-detector", default=None, help="detector name or a YOLO .onnx file")
+    return parser
+
+
+# command name → (module, issue that builds it)
+_COMMANDS: dict[str, tuple[str, int]] = {
+    "demo": ("studio.commands.demo", 2),
+    "simulate": ("studio.commands.simulate", 2),
+    "inspect": ("studio.commands.inspect", 2),
+    "label": ("studio.commands.label", 3),
+    "evaluate": ("studio.commands.evaluate", 4),
+    "view": ("studio.commands.view", 5),
+    "annotate": ("studio.commands.annotate", 6),
+    "calibrate": ("studio.commands.calibrate", 7),
+    "detect-image": ("studio.commands.detect_image", 3),
+}
+
+
+def _handler(command: str) -> Callable[[argparse.Namespace], int]:
+    module_name, issue = _COMMANDS[command]
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name != module_name:
+            raise
+        raise StudioError(f"'studio {command}' is not built yet (planned in issue #{issue})") from None
+    run: Callable[[argparse.Namespace], int] = module.run
+    return run
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(_handler(args.command)(args) or 0)
+    except StudioError as exc:
+        print(f"studio {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"studio {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,34 @@
+"""Label and ground-truth files: the thesis YAML format and JSON lines (DESIGN.md §2)."""
+
+from studio.labels.base import SOURCES, LabelFrame, LabelPerson, LabelSet
+from studio.labels.errors import LabelError
+from studio.labels.formats import (
+    dumps_jsonl,
+    dumps_yaml,
+    frame_from_json,
+    frame_to_json,
+    read_labels,
+    read_labels_jsonl,
+    read_labels_yaml,
+    write_labels,
+    write_labels_jsonl,
+    write_labels_yaml,
+)
+
+__all__ = [
+    "SOURCES",
+    "LabelError",
+    "LabelFrame",
+    "LabelPerson",
+    "LabelSet",
+    "dumps_jsonl",
+    "dumps_yaml",
+    "frame_from_json",
+    "frame_to_json",
+    "read_labels",
+    "read_labels_jsonl",
+    "read_labels_yaml",
+    "write_labels",
+    "write_labels_jsonl",
+    "write_labels_yaml",
+]

@@ -1,0 +1,55 @@
+"""The command line: every DESIGN.md command is listed, user errors exit 2 with one line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from studio.cli import _COMMANDS, build_parser, main
+
+DESIGN_COMMANDS = {
+    "demo",
+    "simulate",
+    "inspect",
+    "label",
+    "evaluate",
+    "view",
+    "annotate",
+    "calibrate",
+    "detect-image",
+}
+
+
+def test_help_lists_every_contract_command() -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "studio.cli", "--help"], capture_output=True, text=True, check=True
+    ).stdout
+    for name in DESIGN_COMMANDS:
+        assert name in out
+    assert set(_COMMANDS) == DESIGN_COMMANDS
+
+
+def test_bad_option_value_exits_2(capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["evaluate", "a", "b", "--radius", "-1"])
+    assert exc.value.code == 2
+    assert "positive" in capsys.readouterr().err
+
+
+def test_user_error_is_one_line_exit_2(tmp_path, capsys) -> None:
+    code = main(["evaluate", str(tmp_path / "missing.jsonl"), str(tmp_path / "gt.jsonl")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "Traceback" not in err
+
+
+def test_import_cli_is_light() -> None:
+    code = (
+        "import sys, studio.cli; "
+        "print(sorted({'rerun', 'torch', 'cv2', 'onnxruntime', 'fastapi'} & set(sys.modules)))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
