@@ -49,6 +49,10 @@ pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
 .venv/bin/python -c 'import torch' 2>/dev/null || "${pip[@]}" torch==2.13.0
 if [ "$dev" = 1 ]; then
   "${pip[@]}" -e '.[dev]'
+  # reference implementations the evaluator is cross-checked against; --no-deps because trackeval
+  # declares the full opencv-python, which would replace the headless build
+  .venv/bin/python -c 'import trackeval, pycocotools' 2>/dev/null \
+    || "${pip[@]}" --no-deps trackeval==1.3.0 pycocotools
 else
   "${pip[@]}" -e .
 fi

@@ -268,6 +268,8 @@ def read_labels_yaml(path: str | os.PathLike[str]) -> LabelSet:
 
 def read_labels(path: str | os.PathLike[str]) -> LabelSet:
     """Read a label file by extension (``.yaml``/``.yml`` or ``.jsonl``)."""
+    if not Path(path).exists():
+        raise LabelError(f"{path}: no such file")
     suffix = Path(path).suffix.lower()
     if suffix in (".yaml", ".yml"):
         return read_labels_yaml(path)

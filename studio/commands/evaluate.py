@@ -1,0 +1,33 @@
+"""``studio evaluate PRED GT [--radius M] [--json OUT]``: metrics table, optional JSON (DESIGN.md §2)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from studio.atomic import atomic_write_text
+from studio.errors import StudioError
+
+__all__ = ["run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    from studio.evaluate import evaluate
+
+    radius = float(args.radius)
+    if not radius > 0:
+        raise StudioError(f"--radius must be a positive number of metres, got {radius}")
+    ev = evaluate(args.pred, args.gt, radius=radius)
+    print(f"studio evaluate: {args.pred} vs ground truth {args.gt}")
+    print(ev.table())
+    if args.json:
+        out = Path(args.json)
+        if out.is_dir():
+            raise StudioError(f"--json {out}: is a directory, expected a file name")
+        try:
+            atomic_write_text(out, json.dumps(ev.to_json(), indent=2, allow_nan=False) + "\n")
+        except OSError as exc:
+            raise StudioError(f"--json {out}: cannot write ({exc.strerror or exc})") from None
+        print(f"metrics written to {out}")
+    return 0
