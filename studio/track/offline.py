@@ -1,0 +1,235 @@
+"""Offline tracking for labeling: what a whole recording allows and an online tracker cannot.
+
+1. An online pass of :class:`~studio.track.ukf.UkfTracker` gives *tracklets* (which observation belongs to
+   which track in which frame), including the hits a track had while still tentative.
+2. Tracks that were never confirmed are dropped; the others are cut where they went unobserved for longer
+   than ``split_gap_s`` (a coasting track's wide gate may have caught clutter), pieces with too few hits are
+   dropped, and the resulting tracklets are filtered and RTS-smoothed on their own and then **stitched**
+   across gaps (:mod:`studio.track.stitch`: motion + appearance, solved globally); a continuation takes the
+   id of the tracklet it continues.
+3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
+   (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
+4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped
+   (likely false positives); the rest are numbered 0, 1, 2, … in order of appearance.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from studio.track.appearance import mean_histogram
+from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
+from studio.track.smooth import FilterRun, filter_track, rts_smooth
+from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
+from studio.track.ukf import UkfTracker, UkfTrackerConfig
+
+__all__ = ["OfflineConfig", "track_offline"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class OfflineConfig:
+    """Options of :func:`track_offline`.
+
+    Attributes:
+        tracker: options of the online pass (``report_tentative`` is forced on). Its ``max_coast_s`` can be
+            short: stitching bridges longer gaps with more information than the online tracker has.
+        stitch: stitching options, or None to skip stitching.
+        smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
+        interpolate_max_gap_s: gaps in a track up to this long (between the observations around them) get
+            interpolated positions; longer gaps stay empty, seconds.
+        split_gap_s: a track of the online pass is cut into tracklets where it went unobserved for longer
+            than this, seconds (a coasting track's wide gate may have caught clutter or someone else).
+        min_tracklet_hits: tracklets with fewer observations are dropped before stitching.
+        min_track_duration_s: final tracks spanning less time are dropped, seconds.
+        min_track_hits: final tracks with fewer observations are dropped.
+        appearance_frames: how many observations at a tracklet's start / end make its appearance.
+        renumber: number the final tracks 0, 1, 2, … in order of their first frame (else they keep the ids
+            of the online pass, with gaps).
+    """
+
+    tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
+    stitch: StitchConfig | None = field(default_factory=StitchConfig)
+    smooth: bool = True
+    interpolate_max_gap_s: float = 1.0
+    split_gap_s: float = 0.5
+    min_tracklet_hits: int = 3
+    min_track_duration_s: float = 0.5
+    min_track_hits: int = 5
+    appearance_frames: int = 10
+    renumber: bool = True
+
+
+# A track's hits: (frame index, row in that frame's Observations), in frame order.
+_Hits = list[tuple[int, int]]
+
+
+def _online_pass(obs: Sequence[Observations], cfg: OfflineConfig) -> dict[int, _Hits]:
+    tracker = UkfTracker(config=replace(cfg.tracker, report_tentative=True))
+    hits: dict[int, _Hits] = {}
+    confirmed: set[int] = set()
+    for i, o in enumerate(obs):
+        row_of = {int(d): r for r, d in enumerate(o.det_index)}
+        for e in tracker.step(o):
+            if e.det_index >= 0:
+                hits.setdefault(e.track_id, []).append((i, row_of[e.det_index]))
+            if e.state == "confirmed":
+                confirmed.add(e.track_id)
+    # Split where a track went unobserved for long (a coasting track's wide gate may have caught clutter or
+    # another person there); stitching re-joins the pieces that belong together.
+    out: dict[int, _Hits] = {}
+    next_id = max(hits, default=-1) + 1
+    for tid in sorted(hits):
+        if tid not in confirmed:
+            continue
+        h = hits[tid]
+        pieces: list[_Hits] = [[h[0]]]
+        for prev, cur in itertools.pairwise(h):
+            if (obs[cur[0]].stamp_ns - obs[prev[0]].stamp_ns) * 1e-9 > cfg.split_gap_s:
+                pieces.append([])
+            pieces[-1].append(cur)
+        for n, piece in enumerate(pieces):
+            if len(piece) >= max(1, cfg.min_tracklet_hits):
+                out[tid if n == 0 else next_id] = piece
+                next_id += n > 0
+    return out
+
+
+def _run(obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig) -> FilterRun:
+    first, last = hits[0][0], hits[-1][0]
+    K = last - first + 1
+    stamps = np.array([obs[i].stamp_ns for i in range(first, last + 1)], dtype=np.int64)
+    z = np.full((K, 2), np.nan)
+    R = np.tile(np.eye(2), (K, 1, 1))
+    for i, r in hits:
+        z[i - first] = obs[i].xy[r]
+        R[i - first] = obs[i].cov[r]
+    t = cfg.tracker
+    return filter_track(
+        stamps,
+        z,
+        R,
+        accel_sigma=t.accel_sigma,
+        init_speed_sigma=t.init_speed_sigma,
+        alpha=t.alpha,
+        beta=t.beta,
+        kappa=t.kappa,
+    )
+
+
+def _appearance(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32] | None:
+    rows = [obs[i].appearance[r] for i, r in hits if obs[i].appearance is not None]  # type: ignore[index]
+    rows = [a for a in rows if np.all(np.isfinite(a))]
+    return mean_histogram(np.array(rows)) if rows else None
+
+
+_Cache = dict[tuple[tuple[int, int], ...], tuple[FilterRun, FloatArray, FloatArray]]
+
+
+def _estimate(
+    obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig, cache: _Cache
+) -> tuple[FilterRun, FloatArray, FloatArray]:
+    """Forward run and smoothed states of a track, computed once per set of hits."""
+    key = tuple(hits)
+    if key not in cache:
+        run = _run(obs, hits, cfg)
+        cache[key] = (run, *rts_smooth(run))
+    return cache[key]
+
+
+def _tracklet(
+    tid: int, obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig, cache: _Cache
+) -> Tracklet:
+    run, x, P = _estimate(obs, hits, cfg, cache)
+    n = max(1, cfg.appearance_frames)
+    return Tracklet(
+        tid,
+        int(run.stamps_ns[0]),
+        int(run.stamps_ns[-1]),
+        x[0],
+        P[0],
+        x[-1],
+        P[-1],
+        _appearance(obs, hits[:n]),
+        _appearance(obs, hits[-n:]),
+    )
+
+
+def _points(
+    tid: int, obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig, cache: _Cache
+) -> list[tuple[int, TrackPoint]]:
+    run, xs, Ps = _estimate(obs, hits, cfg, cache)
+    x, P = (xs, Ps) if cfg.smooth else (run.x, run.P)
+    first = hits[0][0]
+    det_of = {i: int(obs[i].det_index[r]) for i, r in hits}
+    hit_frames = [i for i, _ in hits]
+    out = []
+    for a, b in itertools.pairwise(hit_frames):
+        out.append((a, det_of[a]))
+        if b > a + 1 and (obs[b].stamp_ns - obs[a].stamp_ns) * 1e-9 <= cfg.interpolate_max_gap_s:
+            out.extend((i, -1) for i in range(a + 1, b))
+    out.append((hit_frames[-1], det_of[hit_frames[-1]]))
+    return [
+        (
+            i,
+            TrackPoint(
+                tid,
+                x[i - first, :2],
+                P[i - first, :2, :2],
+                det,
+                smoothed=cfg.smooth,
+                interpolated=det < 0,
+                vxy=x[i - first, 2:],
+            ),
+        )
+        for i, det in out
+    ]
+
+
+def track_offline(
+    observations: Sequence[Observations], *, config: OfflineConfig | None = None
+) -> TrackResult:
+    """Track people over a whole recording, using past and future observations.
+
+    Args:
+        observations: one :class:`Observations` per frame (in the odom frame for our method), stamps
+            non-decreasing. Frames without people are empty observations, not left out.
+        config: options.
+
+    Returns:
+        One :class:`~studio.track.base.TrackFrame` per input frame; points are smoothed (unless disabled)
+        and points in bridged gaps are flagged ``interpolated`` with ``det_index = -1``.
+
+    Raises:
+        TrackingError: stamps decrease.
+    """
+    cfg = config or OfflineConfig()
+    obs = list(observations)
+    tracklets = _online_pass(obs, cfg)
+    cache: _Cache = {}
+    if cfg.stitch is not None and len(tracklets) > 1:
+        summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
+        root = chain_links(list(tracklets), stitch_links(summaries, config=cfg.stitch))
+    else:
+        root = {tid: tid for tid in tracklets}
+    merged: dict[int, _Hits] = {}
+    for tid, h in tracklets.items():
+        merged.setdefault(root[tid], []).extend(h)
+    kept = []
+    for tid, h in merged.items():
+        h.sort()
+        duration_s = (obs[h[-1][0]].stamp_ns - obs[h[0][0]].stamp_ns) * 1e-9
+        if len(h) >= cfg.min_track_hits and duration_s >= cfg.min_track_duration_s:
+            kept.append((h[0][0], tid, h))
+    kept.sort()
+    per_frame: list[list[TrackPoint]] = [[] for _ in obs]
+    for n, (_, tid, h) in enumerate(kept):
+        for i, p in _points(n if cfg.renumber else tid, obs, h, cfg, cache):
+            per_frame[i].append(p)
+    return TrackResult(tuple(TrackFrame(o.stamp_ns, tuple(p)) for o, p in zip(obs, per_frame, strict=True)))

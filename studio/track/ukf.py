@@ -1,0 +1,296 @@
+"""Online multi-person tracker: one UKF per track, Mahalanobis gating, global nearest neighbour.
+
+Each track runs filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with the constant-velocity model
+of :mod:`studio.track.models`; the time step comes from the integer-ns stamps (never a fixed rate) and each
+observation brings its own measurement covariance. Association is one-to-one by the Hungarian algorithm on
+the negative log-likelihood ``d² + log det S`` of the gated pairs (``d²`` the squared Mahalanobis distance,
+gate from the χ² distribution with 2 degrees of freedom).
+
+Life cycle: an unmatched observation starts a *tentative* track; it becomes *confirmed* after M hits within
+its last N frames, and dies if it cannot get there. A confirmed track that misses a frame is *lost*
+(coasting on its prediction) until it is observed again, or deleted when it has not been observed for
+``max_coast_s`` seconds.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from filterpy.kalman import UnscentedKalmanFilter, unscented_transform
+from numpy.typing import NDArray
+
+from studio.track.appearance import bhattacharyya_matrix
+from studio.track.base import Observations, TrackEstimate
+from studio.track.errors import TrackingError
+from studio.track.gnn import chi2_gate, gnn_assign, mahalanobis_costs
+from studio.track.models import make_ukf, white_accel_q
+
+__all__ = ["UkfTracker", "UkfTrackerConfig"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class UkfTrackerConfig:
+    """Options of :class:`UkfTracker`.
+
+    Attributes:
+        accel_sigma: white-noise acceleration of walking people, m/s² (see
+            :func:`studio.track.models.white_accel_q`); larger follows stops and turns faster.
+        init_speed_sigma: standard deviation of the unknown velocity of a new track, m/s.
+        gate_prob: probability mass of the χ² (2 dof) gate on the squared Mahalanobis distance.
+        use_logdet: add ``log det S`` to the assignment cost (prefers precise observations and tracks).
+        confirm_hits: M, hits needed to confirm a tentative track ...
+        confirm_window: N, ... within its last N frames; a tentative track that can no longer reach M hits
+            in N frames is deleted.
+        tentative_max_coast_s: a tentative track unobserved for longer than this is deleted, seconds.
+        max_coast_s: a confirmed track unobserved for longer than this is deleted, seconds.
+        birth_min_separation_m: an unmatched observation closer than this to a confirmed track's position
+            starts no track (a duplicate detection of that person), metres.
+        min_birth_score: unmatched observations with a lower score start no track.
+        cascade: associate confirmed and lost tracks first, then tentative tracks with what is left
+            (clutter-born tracks cannot steal a detection from an established track).
+        report_tentative: :meth:`UkfTracker.step` also returns tentative tracks.
+        appearance_gate: when set and both a track and an observation carry appearance descriptors, pairs
+            whose Bhattacharyya distance exceeds this are not associated (off by default: histograms of
+            real crops vary with light and pose; the offline stitcher uses them with care).
+        appearance_weight: added cost per unit of Bhattacharyya distance (0: appearance does not count).
+        appearance_momentum: a track's descriptor is ``m·old + (1 − m)·new`` after each hit.
+        alpha, beta, kappa: scaled sigma-point parameters of the UKF.
+    """
+
+    accel_sigma: float = 1.5
+    init_speed_sigma: float = 1.0
+    gate_prob: float = 0.999
+    use_logdet: bool = True
+    confirm_hits: int = 3
+    confirm_window: int = 5
+    tentative_max_coast_s: float = 0.5
+    max_coast_s: float = 2.0
+    birth_min_separation_m: float = 0.25
+    min_birth_score: float = 0.0
+    cascade: bool = True
+    report_tentative: bool = False
+    appearance_gate: float | None = None
+    appearance_weight: float = 0.0
+    appearance_momentum: float = 0.8
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.confirm_hits <= self.confirm_window:
+            raise ValueError("need 1 <= confirm_hits <= confirm_window")
+        if self.accel_sigma <= 0 or self.init_speed_sigma <= 0:
+            raise ValueError("accel_sigma and init_speed_sigma must be positive")
+        if self.max_coast_s < 0 or self.tentative_max_coast_s < 0:
+            raise ValueError("coast times must be non-negative")
+        chi2_gate(self.gate_prob)
+
+
+@dataclass
+class _Track:
+    track_id: int
+    ukf: UnscentedKalmanFilter
+    stamp_ns: int
+    last_hit_ns: int
+    history: deque[bool]
+    state: str = "tentative"
+    misses_since_birth: int = 0
+    det_index: int = -1
+    appearance: NDArray[np.float32] | None = None
+    z_pred: FloatArray = field(default_factory=lambda: np.zeros(2))
+    Pz: FloatArray = field(default_factory=lambda: np.eye(2))
+
+    def estimate(self) -> TrackEstimate:
+        x, P = self.ukf.x, self.ukf.P
+        return TrackEstimate(
+            self.track_id,
+            self.stamp_ns,
+            x[:2].copy(),
+            x[2:].copy(),
+            P[:2, :2].copy(),
+            self.det_index,
+            self.state,
+        )
+
+
+class UkfTracker:
+    """UKF + GNN multi-person tracker (module docstring); a :class:`~studio.track.base.Tracker`.
+
+    Args:
+        config: options; the defaults suit walking people observed at 5–20 Hz.
+        first_id: the id given to the first track.
+    """
+
+    def __init__(self, *, config: UkfTrackerConfig | None = None, first_id: int = 0) -> None:
+        self.config = config or UkfTrackerConfig()
+        self._gate = chi2_gate(self.config.gate_prob)
+        self._tracks: list[_Track] = []
+        self._next_id = first_id
+        self._stamp_ns: int | None = None
+
+    @property
+    def tracks(self) -> list[TrackEstimate]:
+        """Current estimates of all live tracks (tentative ones included)."""
+        return [t.estimate() for t in self._tracks]
+
+    def step(self, obs: Observations) -> list[TrackEstimate]:
+        """Predict all tracks to ``obs.stamp_ns``, associate, update, manage the life cycle.
+
+        Returns:
+            Estimates of the confirmed and lost tracks (and tentative ones if ``report_tentative``), sorted
+            by track id; ``det_index`` says which observation updated each track (-1: coasting).
+
+        Raises:
+            TrackingError: the stamp is earlier than the previous one.
+        """
+        cfg = self.config
+        if self._stamp_ns is not None and obs.stamp_ns < self._stamp_ns:
+            raise TrackingError(
+                f"observation stamps must not decrease ({obs.stamp_ns} ns after {self._stamp_ns} ns)"
+            )
+        self._stamp_ns = obs.stamp_ns
+        for t in self._tracks:
+            self._predict(t, obs.stamp_ns)
+
+        free = np.ones(len(obs), dtype=bool)
+        groups = (
+            [
+                [t for t in self._tracks if t.state != "tentative"],
+                [t for t in self._tracks if t.state == "tentative"],
+            ]
+            if cfg.cascade
+            else [list(self._tracks)]
+        )
+        matched: dict[int, int] = {}
+        for group in groups:
+            cols = np.flatnonzero(free)
+            if not group or not len(cols):
+                continue
+            zp = np.array([t.z_pred for t in group])
+            Pz = np.array([t.Pz for t in group])
+            d2, logdet = mahalanobis_costs(zp, Pz, obs.xy[cols], obs.cov[cols])
+            cost = d2 + logdet if cfg.use_logdet else d2
+            allowed = d2 <= self._gate
+            self._appearance_terms(group, obs, cols, cost, allowed)
+            for r, k in gnn_assign(cost, allowed):
+                matched[group[r].track_id] = int(cols[k])
+                free[cols[k]] = False
+
+        for t in list(self._tracks):
+            row = matched.get(t.track_id)
+            if row is None:
+                self._miss(t, obs.stamp_ns)
+            else:
+                self._hit(t, obs, row)
+        self._tracks = [t for t in self._tracks if t.state != "deleted"]
+        self._births(obs, free)
+        keep = ("tentative", "confirmed", "lost") if cfg.report_tentative else ("confirmed", "lost")
+        return [t.estimate() for t in sorted(self._tracks, key=lambda t: t.track_id) if t.state in keep]
+
+    # -- internals -------------------------------------------------------------------------------------
+
+    def _predict(self, t: _Track, stamp_ns: int) -> None:
+        dt = (stamp_ns - t.stamp_ns) * 1e-9
+        t.ukf.Q = white_accel_q(dt, self.config.accel_sigma)
+        t.ukf.predict(dt=dt)  # also with dt = 0: refreshes the sigma points used below
+        t.stamp_ns = stamp_ns
+        t.det_index = -1
+        sigmas_h = np.array([t.ukf.hx(s) for s in t.ukf.sigmas_f])
+        t.z_pred, t.Pz = unscented_transform(sigmas_h, t.ukf.Wm, t.ukf.Wc)
+
+    def _appearance_terms(
+        self,
+        group: list[_Track],
+        obs: Observations,
+        cols: NDArray[np.intp],
+        cost: FloatArray,
+        allowed: NDArray[np.bool_],
+    ) -> None:
+        """Add the appearance cost and gate in place (pairs where both sides have descriptors)."""
+        cfg = self.config
+        if obs.appearance is None or (cfg.appearance_gate is None and cfg.appearance_weight == 0.0):
+            return
+        rows = [r for r, t in enumerate(group) if t.appearance is not None]
+        if not rows:
+            return
+        A = np.array([group[r].appearance for r in rows])
+        if A.shape[1] != obs.appearance.shape[1]:
+            return
+        B = obs.appearance[cols]
+        has = np.all(np.isfinite(B), axis=1)
+        D = np.zeros((len(rows), len(cols)))
+        if has.any():
+            D[:, has] = bhattacharyya_matrix(A, B[has])
+        cost[rows] += cfg.appearance_weight * D
+        if cfg.appearance_gate is not None:
+            allowed[rows] &= cfg.appearance_gate >= D
+
+    def _hit(self, t: _Track, obs: Observations, row: int) -> None:
+        cfg = self.config
+        if obs.appearance is not None and np.all(np.isfinite(obs.appearance[row])):
+            new = obs.appearance[row]
+            m = cfg.appearance_momentum
+            old = t.appearance
+            if old is not None and old.shape == new.shape:
+                t.appearance = (m * old + (1.0 - m) * new).astype(np.float32)
+            else:
+                t.appearance = new.copy()
+        t.ukf.update(obs.xy[row], R=obs.cov[row])
+        t.ukf.P = 0.5 * (t.ukf.P + t.ukf.P.T)
+        t.det_index = int(obs.det_index[row])
+        t.last_hit_ns = obs.stamp_ns
+        t.history.append(True)
+        if t.state == "tentative":
+            if sum(t.history) >= cfg.confirm_hits:
+                t.state = "confirmed"
+        else:
+            t.state = "confirmed"
+
+    def _miss(self, t: _Track, stamp_ns: int) -> None:
+        cfg = self.config
+        t.history.append(False)
+        unseen_s = (stamp_ns - t.last_hit_ns) * 1e-9
+        if t.state == "tentative":
+            t.misses_since_birth += 1
+            if (
+                t.misses_since_birth > cfg.confirm_window - cfg.confirm_hits
+                or unseen_s > cfg.tentative_max_coast_s
+            ):
+                t.state = "deleted"
+        elif unseen_s > cfg.max_coast_s:
+            t.state = "deleted"
+        else:
+            t.state = "lost"
+
+    def _births(self, obs: Observations, free: NDArray[np.bool_]) -> None:
+        cfg = self.config
+        anchors = np.array([t.ukf.x[:2] for t in self._tracks if t.state != "tentative"]).reshape(-1, 2)
+        for row in np.flatnonzero(free):
+            if obs.score[row] < cfg.min_birth_score:
+                continue
+            if len(anchors) and np.min(np.hypot(*(anchors - obs.xy[row]).T)) < cfg.birth_min_separation_m:
+                continue
+            P0 = np.zeros((4, 4))
+            P0[:2, :2] = obs.cov[row]
+            P0[2:, 2:] = np.eye(2) * cfg.init_speed_sigma**2
+            x0 = np.array([obs.xy[row, 0], obs.xy[row, 1], 0.0, 0.0])
+            ukf = make_ukf(x0, P0, alpha=cfg.alpha, beta=cfg.beta, kappa=cfg.kappa)
+            t = _Track(
+                self._next_id,
+                ukf,
+                obs.stamp_ns,
+                obs.stamp_ns,
+                deque([True], maxlen=cfg.confirm_window),
+                det_index=int(obs.det_index[row]),
+                appearance=None
+                if obs.appearance is None or not np.all(np.isfinite(obs.appearance[row]))
+                else obs.appearance[row].copy(),
+            )
+            if cfg.confirm_hits <= 1:
+                t.state = "confirmed"
+            self._next_id += 1
+            self._tracks.append(t)

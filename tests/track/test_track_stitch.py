@@ -1,0 +1,68 @@
+"""Tracklet stitching tables: motion and appearance gates, global one-to-one links, chains."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
+
+S = 1_000_000_000
+P = np.diag([0.003, 0.003, 0.05, 0.05])  # ~5 cm, ~0.2 m/s
+RED = np.array([0.5, 0.5, 0.0, 0.0], np.float32)
+BLUE = np.array([0.0, 0.0, 0.5, 0.5], np.float32)
+
+
+def tl(tid, start_s, end_s, p_start, p_end, v=(1.0, 0.0), app=None) -> Tracklet:
+    xs = np.array([*p_start, *v], float)
+    xe = np.array([*p_end, *v], float)
+    return Tracklet(tid, round(start_s * S), round(end_s * S), xs, P, xe, P, app, app)
+
+
+# A walks along +x at 1 m/s and ends at x = 0, t = 10 s; candidates B start after a gap.
+A = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0))
+CASES = [
+    ("on the predicted path", [A, tl(1, 11.5, 15.0, (1.5, 0.0), (5.0, 0.0))], [(0, 1)]),
+    ("stopped in the gap", [A, tl(1, 11.5, 15.0, (0.3, 0.1), (0.3, 0.1), v=(0.0, 0.0))], [(0, 1)]),
+    ("gap too long", [A, tl(1, 14.0, 15.0, (4.0, 0.0), (5.0, 0.0))], []),
+    ("starts before A ends", [A, tl(1, 9.0, 15.0, (1.5, 0.0), (5.0, 0.0))], []),
+    ("too far to walk", [A, tl(1, 11.0, 15.0, (0.0, 6.0), (4.0, 6.0))], []),
+    ("off the predicted path", [A, tl(1, 11.0, 15.0, (-2.0, 3.0), (2.0, 3.0))], []),
+    (
+        "the closer of two candidates",
+        [A, tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0)), tl(2, 11.0, 15.0, (1.0, 1.5), (5.0, 1.5))],
+        [(0, 1)],
+    ),
+]
+
+
+@pytest.mark.parametrize(("name", "tracklets", "expected"), CASES, ids=[c[0] for c in CASES])
+def test_motion_table(name, tracklets, expected):
+    assert stitch_links(tracklets) == expected
+
+
+def test_appearance_gate_and_cost():
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    same_path_blue = tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE)
+    off_path_red = tl(2, 11.0, 15.0, (1.0, 1.2), (5.0, 1.2), app=RED)
+    assert stitch_links([a, same_path_blue, off_path_red]) == [(0, 2)]
+    assert stitch_links([a, same_path_blue]) == []
+    # without descriptors motion alone decides
+    no_app = [tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0)), tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0))]
+    assert stitch_links(no_app) == [(0, 1)]
+    assert stitch_links([a, same_path_blue], config=StitchConfig(max_appearance=1.0)) == [(0, 1)]
+
+
+def test_one_to_one_and_chains():
+    # two walkers side by side 2 m apart, both hidden from 10 to 11 s, then again from 15 to 16 s
+    parts = []
+    for y, base in ((0.0, 0), (2.0, 10)):
+        parts += [
+            tl(base + 0, 5.0, 10.0, (-5.0, y), (0.0, y)),
+            tl(base + 1, 11.0, 15.0, (1.0, y), (5.0, y)),
+            tl(base + 2, 16.0, 20.0, (6.0, y), (10.0, y)),
+        ]
+    links = stitch_links(parts)
+    assert sorted(links) == [(0, 1), (1, 2), (10, 11), (11, 12)]
+    root = chain_links([p.track_id for p in parts], links)
+    assert root == {0: 0, 1: 0, 2: 0, 10: 10, 11: 10, 12: 10}
