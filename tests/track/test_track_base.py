@@ -112,11 +112,9 @@ def test_colour_histogram_separates_shirts():
     noisy = np.clip(red.astype(int) + np.random.default_rng(0).integers(-20, 20, red.shape), 0, 255)
     assert bhattacharyya_distance(hr, colour_histogram(noisy.astype(np.uint8))) < 0.5
     assert colour_histogram(np.zeros((0, 3), np.uint8)).sum() == pytest.approx(1.0)
-    import numpy as np
-    import pytest
 
-    from studio.track.base import Observations
 
+def test_all_nan_appearance_row_means_no_descriptor() -> None:
     app = np.array([[0.5, 0.5], [np.nan, np.nan]], np.float32)
     obs = Observations.create(0, [[0.0, 0.0], [1.0, 1.0]], appearance=app)
     assert np.isnan(obs.appearance[1]).all()
