@@ -1,0 +1,214 @@
+"""``studio inspect RECORDING [--rig RIG]``: topics, types, counts, rates, time span, TF tree, sync stats."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.io import (
+    RecordingError,
+    SyncReport,
+    TfBuffer,
+    count_frames,
+    decode_odometry,
+    decode_panorama,
+    decode_scan,
+    iter_frames,
+    load_rig,
+    open_recording,
+)
+from studio.io.base import RawMessage
+from studio.io.decode import stamp_ns_of
+from studio.io.reader import Recording
+
+__all__ = ["describe_recording", "run"]
+
+
+def _utc(ns: int) -> str:
+    return datetime.fromtimestamp(ns / 1e9, tz=UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC"
+
+
+def _size(path: Path) -> str:
+    n = (
+        sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+        if path.is_dir()
+        else path.stat().st_size
+    )
+    for unit in ("B", "KB", "MB", "GB"):
+        if n < 1024 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024  # type: ignore[assignment]
+    return f"{n} B"
+
+
+def _metres(v: float) -> str:
+    return "∞" if v >= 1e30 else f"{v:g}"
+
+
+_SENSOR_KINDS = ("LaserScan", "CompressedImage", "Image", "RawImage", "Odometry")
+
+
+def _kind(msgtype: str) -> str:
+    return msgtype.rsplit("/", 1)[-1].rsplit(".", 1)[-1]
+
+
+def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, count: int) -> list[str]:
+    """Lines describing a sensor topic from its first (and last) message: frame, size, header stamps."""
+    kind = _kind(first.msgtype)
+    try:
+        msg = rec.decode(first)
+        if kind == "LaserScan":
+            s = decode_scan(msg, first.log_ns)
+            fov = abs(s.angle_increment) * max(len(s) - 1, 0)
+            text = (
+                f"frame '{s.frame_id}', {len(s)} beams over {np.degrees(fov):.1f}°, "
+                f"range {s.range_min:g}–{_metres(s.range_max)} m"
+            )
+        elif kind == "Odometry":
+            o = decode_odometry(msg, first.log_ns)
+            text = f"frame '{o.frame_id}' → '{o.child_frame_id}'"
+        else:
+            p = decode_panorama(msg, first.log_ns)
+            fmt = f", {p.encoding}" if p.encoding else ""
+            text = f"frame '{p.frame_id}', {p.width}×{p.height}{fmt}"
+    except RecordingError as exc:
+        return [f"first message not decodable: {exc}"]
+    lines = [text]
+    h0 = stamp_ns_of(msg, first.log_ns)
+    stamps = f"header stamps: first − log time {(h0 - first.log_ns) / 1e9:+.3f} s"
+    if last is not None and count > 1:
+        try:
+            h1 = stamp_ns_of(rec.decode(last), last.log_ns)
+        except RecordingError:
+            h1 = None
+        if h1 is not None and h1 > h0:
+            stamps += f", span {(h1 - h0) / 1e9:.3f} s, {(count - 1) / ((h1 - h0) / 1e9):.2f} Hz"
+    lines.append(stamps)
+    return lines
+
+
+def _first_last(rec: Recording) -> dict[str, tuple[RawMessage, RawMessage]]:
+    """First and last raw record of every topic, from one pass (no decoding)."""
+    from tqdm import tqdm
+
+    out: dict[str, tuple[RawMessage, RawMessage]] = {}
+    total = sum(t.count for t in rec.topics.values())
+    for raw in tqdm(rec.messages(), total=total, desc="reading", unit="msg", file=sys.stderr, disable=None,
+                    leave=False):  # fmt: skip
+        have = out.get(raw.topic)
+        out[raw.topic] = (raw, raw) if have is None else (have[0], raw)
+    return out
+
+
+def _tf_lines(tf: TfBuffer) -> list[str]:
+    edges = tf.edges()
+    if not edges:
+        return ["TF: none (the recording has no /tf or /tf_static)"]
+    children: dict[str, list[Any]] = {}
+    for e in edges:
+        children.setdefault(e.parent, []).append(e)
+    child_names = {e.child for e in edges}
+    roots = sorted(p for p in children if p not in child_names)
+    lines = [f"TF frames ({len(tf.frames())}; parent → child):"]
+
+    def walk(frame: str, indent: str, seen: set[str]) -> None:
+        for e in children.get(frame, []):
+            if e.child in seen:
+                continue
+            if e.static:
+                how = "static"
+            else:
+                span = (e.last_ns - e.first_ns) / 1e9
+                rate = (e.count - 1) / span if span > 0 else 0.0
+                how = f"dynamic, {e.count} samples, {rate:.1f} Hz"
+            lines.append(f"{indent}{e.parent} → {e.child} ({how})")
+            walk(e.child, indent + "  ", seen | {e.child})
+
+    for root in roots or sorted(children):
+        walk(root, "  ", {root})
+    return lines
+
+
+_SCAN_ALL_BELOW = 2 * 2**30  # bytes: smaller recordings are read once for exact per-topic rates
+
+
+def _size_bytes(path: Path) -> int:
+    if path.is_dir():
+        return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+    return path.stat().st_size
+
+
+def describe_recording(rec: Recording, *, exact_rates: bool | None = None) -> list[str]:
+    """The report lines of ``studio inspect`` for an open recording (without sync statistics).
+
+    Args:
+        rec: the open recording.
+        exact_rates: read every record once for per-topic rates (count − 1 over the topic's own log-time
+            span); default: when the recording is under 2 GiB, else the rates use the whole recording's span.
+    """
+    kinds = {"ros1": "ROS1 bag", "ros2": "ROS2 bag", "mcap": "plain MCAP"}
+    lines = [f"recording: {rec.path} ({kinds[rec.kind]}, {_size(rec.path)})"]
+    span = rec.duration_ns / 1e9
+    if rec.topics and any(t.count for t in rec.topics.values()):
+        lines.append(f"time span: {_utc(rec.start_ns)} → {_utc(rec.end_ns)} ({span:.3f} s, log time)")
+    else:
+        lines.append("time span: empty recording")
+    if exact_rates is None:
+        exact_rates = _size_bytes(rec.path) < _SCAN_ALL_BELOW
+    ends = _first_last(rec) if exact_rates else {}
+    how = "rate over the topic's own span" if exact_rates else "≈ rate over the recording's span"
+    lines.append(f"topics ({len(rec.topics)}; type, messages, {how}, log time):")
+    w_name = max((len(t) for t in rec.topics), default=5)
+    w_type = max((len(i.msgtype) for i in rec.topics.values()), default=4)
+    for name, info in rec.topics.items():
+        pair = ends.get(name)
+        if pair is None and not exact_rates and _kind(info.msgtype) in _SENSOR_KINDS:
+            first_raw = next(iter(rec.messages([name])), None)
+            pair = None if first_raw is None else (first_raw, first_raw)
+        t0, t1 = (pair[0].log_ns, pair[1].log_ns) if pair and exact_rates else (rec.start_ns, rec.end_ns)
+        tspan = (t1 - t0) / 1e9
+        rate = f"{(info.count - 1) / tspan:8.2f} Hz" if tspan > 0 and info.count > 1 else "        - Hz"
+        lines.append(f"  {name:<{w_name}}  {info.msgtype:<{w_type}}  {info.count:7d} msgs  {rate}")
+        if pair is not None and _kind(info.msgtype) in _SENSOR_KINDS:
+            last = pair[1] if exact_rates else None
+            lines += [f"  {'':<{w_name}}  {d}" for d in _sensor_detail(rec, pair[0], last, info.count)]
+    lines += _tf_lines(TfBuffer.from_recording(rec))
+    return lines
+
+
+def _report(args: argparse.Namespace) -> None:
+    rig = load_rig(args.rig) if args.rig else None
+    with open_recording(args.recording) as rec:
+        for line in describe_recording(rec):
+            print(line, flush=True)
+        if rig is not None:
+            from tqdm import tqdm
+
+            report = SyncReport()
+            total = count_frames(rec, rig)
+            frames = iter_frames(rec, rig, report=report)
+            for _ in tqdm(
+                frames, total=total, desc="sync", unit="frame", file=sys.stderr, disable=None, leave=False
+            ):
+                pass
+            ms = rig.sync.max_dt_s * 1e3
+            print(f"sync (rig {args.rig}, base_frame '{rig.base_frame}', max_dt {ms:g} ms):")
+            for line in report.summary().splitlines():
+                print(f"  {line}")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the report of ``studio inspect`` (exit status 0; errors raise StudioError → 2)."""
+    try:
+        _report(args)
+        sys.stdout.flush()
+    except BrokenPipeError:  # output piped into `head`: stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    return 0

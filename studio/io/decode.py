@@ -1,0 +1,271 @@
+"""Decode deserialized messages into studio's types (:mod:`studio.io.base`).
+
+Messages are the objects of :meth:`Recording.decode`: ROS messages (ROS1 and ROS2 field names) or, from a
+plain MCAP with JSON encoding, attribute trees shaped like the ROS message or like the Foxglove schemas
+(``foxglove.LaserScan``, ``CompressedImage``, ``RawImage``, ``FrameTransform(s)``, ``PoseInFrame``).
+The data stamp is the message header stamp; frame ids lose any leading ``/``.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from studio.geometry.se import Pose2, Pose3
+from studio.io.base import LaserScan, Odometry, Panorama
+from studio.io.errors import RecordingError
+
+__all__ = [
+    "decode_odometry",
+    "decode_panorama",
+    "decode_scan",
+    "decode_tf",
+    "image_format",
+    "norm_frame",
+    "stamp_ns_of",
+    "yaw_from_quat",
+]
+
+
+def norm_frame(frame_id: Any) -> str:
+    """Frame id without surrounding blanks and leading ``/`` (old ROS1 bags write ``/base_link``)."""
+    return str(frame_id or "").strip().lstrip("/")
+
+
+def _time_ns(t: Any) -> int:
+    sec = int(getattr(t, "sec", getattr(t, "secs", 0)) or 0)
+    nsec = getattr(t, "nanosec", None)
+    if nsec is None:
+        nsec = getattr(t, "nsec", getattr(t, "nsecs", 0))
+    return sec * 1_000_000_000 + int(nsec or 0)
+
+
+def stamp_ns_of(msg: Any, fallback_ns: int | None = None) -> int:
+    """Header stamp of ``msg`` in ns (``header.stamp`` or Foxglove ``timestamp``).
+
+    A zero (unset) stamp is replaced by ``fallback_ns`` when given (e.g. the record's log time).
+    """
+    header = getattr(msg, "header", None)
+    if header is not None and hasattr(header, "stamp"):
+        t = _time_ns(header.stamp)
+    elif hasattr(msg, "timestamp"):
+        t = _time_ns(msg.timestamp)
+    else:
+        t = 0
+    if t == 0 and fallback_ns is not None:
+        return int(fallback_ns)
+    return t
+
+
+def _frame_of(msg: Any) -> str:
+    header = getattr(msg, "header", None)
+    if header is not None and hasattr(header, "frame_id"):
+        return norm_frame(header.frame_id)
+    return norm_frame(getattr(msg, "frame_id", ""))
+
+
+def _bytes_of(data: Any) -> bytes:
+    """Message payload as bytes (numpy uint8 array from rosbags, list, or base64 text from JSON)."""
+    if isinstance(data, bytes | bytearray | memoryview):
+        return bytes(data)
+    if isinstance(data, np.ndarray):
+        return data.astype(np.uint8, copy=False).tobytes()
+    if isinstance(data, str):
+        return base64.b64decode(data)
+    return bytes(np.asarray(data, dtype=np.uint8).tobytes())
+
+
+def yaw_from_quat(x: float, y: float, z: float, w: float) -> float:
+    """Heading (rad) of the x axis rotated by quaternion ``(x, y, z, w)``, projected onto the plane."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def decode_scan(msg: Any, stamp_ns: int | None = None) -> LaserScan:
+    """sensor_msgs/LaserScan (or foxglove.LaserScan) → :class:`LaserScan`.
+
+    Args:
+        msg: the deserialized message.
+        stamp_ns: used when the header stamp is zero (unset), ns; typically the log time.
+
+    Raises:
+        RecordingError: the message is not a laser scan.
+    """
+    try:
+        stamp = stamp_ns_of(msg, stamp_ns)
+        frame = _frame_of(msg)
+        ranges = np.asarray(msg.ranges, dtype=np.float32).reshape(-1)
+        inten_raw = getattr(msg, "intensities", None)
+        inten = None if inten_raw is None else np.asarray(inten_raw, dtype=np.float32).reshape(-1)
+        if inten is not None and inten.shape != ranges.shape:
+            inten = None
+        if hasattr(msg, "angle_min"):
+            a0, da = float(msg.angle_min), float(msg.angle_increment)
+            rmin, rmax = float(msg.range_min), float(msg.range_max)
+        else:  # foxglove.LaserScan: start/end angle, no range limits
+            a0, a1 = float(msg.start_angle), float(msg.end_angle)
+            da = (a1 - a0) / (ranges.size - 1) if ranges.size > 1 else 1.0
+            rmin, rmax = 0.0, float("inf")
+        if not math.isfinite(rmax):
+            rmax = float(np.finfo(np.float32).max)
+        if ranges.size and da == 0.0:
+            raise ValueError("angle_increment is 0")
+        return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten)
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise RecordingError(f"not a decodable laser scan: {exc}") from None
+
+
+def image_format(data: bytes) -> str:
+    """``"jpeg"``, ``"png"`` or ``""`` from the first bytes of an encoded image."""
+    if data[:3] == b"\xff\xd8\xff":
+        return "jpeg"
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        return "png"
+    return ""
+
+
+def _raw_to_bgr(
+    data: bytes, height: int, width: int, encoding: str, step: int, bigendian: bool
+) -> NDArray[np.uint8]:
+    import cv2
+
+    enc = encoding.lower().strip()
+    if height <= 0 or width <= 0:
+        raise ValueError(f"empty image {width}×{height}")
+    channels, dtype = {
+        "rgb8": (3, np.uint8), "bgr8": (3, np.uint8), "8uc3": (3, np.uint8),
+        "rgba8": (4, np.uint8), "bgra8": (4, np.uint8), "8uc4": (4, np.uint8),
+        "mono8": (1, np.uint8), "8uc1": (1, np.uint8),
+        "mono16": (1, np.uint16), "16uc1": (1, np.uint16),
+        "uyvy": (2, np.uint8), "yuv422": (2, np.uint8), "yuyv": (2, np.uint8), "yuv422_yuy2": (2, np.uint8),
+        "bayer_rggb8": (1, np.uint8), "bayer_bggr8": (1, np.uint8),
+        "bayer_gbrg8": (1, np.uint8), "bayer_grbg8": (1, np.uint8),
+    }.get(enc, (0, np.uint8))  # fmt: skip
+    if channels == 0:
+        raise ValueError(f"unsupported raw image encoding '{encoding}'")
+    itemsize = np.dtype(dtype).itemsize
+    row = width * channels * itemsize
+    step = step or row
+    if step < row or len(data) < step * (height - 1) + row:
+        raise ValueError(
+            f"image data too short for {width}×{height} {encoding} (step {step}, {len(data)} bytes)"
+        )
+    buf = np.frombuffer(data, dtype=np.uint8, count=min(len(data), step * height))
+    if buf.size < step * height:
+        buf = np.concatenate([buf, np.zeros(step * height - buf.size, np.uint8)])
+    rows = buf.reshape(height, step)[:, :row]
+    if itemsize == 2:
+        arr16 = rows.copy().view(">u2" if bigendian else "<u2").reshape(height, width)
+        gray = (arr16 >> 8).astype(np.uint8)
+        return np.ascontiguousarray(cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR), dtype=np.uint8)
+    img = np.ascontiguousarray(rows).reshape(height, width, channels) if channels > 1 else rows.copy()
+    conv = {
+        "rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR,
+        "8uc4": cv2.COLOR_BGRA2BGR, "mono8": cv2.COLOR_GRAY2BGR, "8uc1": cv2.COLOR_GRAY2BGR,
+        "uyvy": cv2.COLOR_YUV2BGR_UYVY, "yuv422": cv2.COLOR_YUV2BGR_UYVY,
+        "yuyv": cv2.COLOR_YUV2BGR_YUY2, "yuv422_yuy2": cv2.COLOR_YUV2BGR_YUY2,
+        # ROS names the Bayer pattern from the top-left 2×2; OpenCV from the second row
+        "bayer_rggb8": cv2.COLOR_BayerBG2BGR, "bayer_bggr8": cv2.COLOR_BayerRG2BGR,
+        "bayer_gbrg8": cv2.COLOR_BayerGR2BGR, "bayer_grbg8": cv2.COLOR_BayerGB2BGR,
+    }.get(enc)  # fmt: skip
+    out = img if conv is None else cv2.cvtColor(img, conv)
+    return np.ascontiguousarray(out, dtype=np.uint8)
+
+
+def decode_panorama(msg: Any, stamp_ns: int | None = None) -> Panorama:
+    """sensor_msgs/CompressedImage (JPEG/PNG) or Image (rgb8, bgr8, rgba8, bgra8, mono8, mono16, yuv422,
+    bayer_*) → :class:`Panorama` with a BGR image. Compressed bytes are kept in ``Panorama.encoded``.
+
+    Args:
+        msg: the deserialized message (ROS or Foxglove CompressedImage / RawImage).
+        stamp_ns: used when the header stamp is zero (unset), ns.
+
+    Raises:
+        RecordingError: the message is not an image, or its pixels cannot be decoded.
+    """
+    import cv2
+
+    try:
+        stamp = stamp_ns_of(msg, stamp_ns)
+        frame = _frame_of(msg)
+        if hasattr(msg, "format") and not hasattr(msg, "width"):
+            data = _bytes_of(msg.data)
+            img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+            if img is None or img.ndim != 3:
+                raise ValueError(
+                    f"compressed image ({msg.format or 'unknown format'}, {len(data)} bytes) does not decode"
+                )
+            fmt = image_format(data)
+            return Panorama(stamp, frame, np.asarray(img, dtype=np.uint8), data if fmt else None, fmt)
+        img = _raw_to_bgr(
+            _bytes_of(msg.data),
+            int(msg.height),
+            int(msg.width),
+            str(msg.encoding),
+            int(getattr(msg, "step", 0) or 0),
+            bool(getattr(msg, "is_bigendian", False)),
+        )
+        return Panorama(stamp, frame, img)
+    except (AttributeError, TypeError, ValueError, cv2.error) as exc:
+        raise RecordingError(f"cannot decode image: {' '.join(str(exc).split())[:200]}") from None
+
+
+def _xyz(v: Any) -> tuple[float, float, float]:
+    return float(v.x), float(v.y), float(v.z)
+
+
+def _xyzw(q: Any) -> tuple[float, float, float, float]:
+    return float(q.x), float(q.y), float(q.z), float(q.w)
+
+
+def decode_odometry(msg: Any, stamp_ns: int | None = None) -> Odometry:
+    """nav_msgs/Odometry (or foxglove.PoseInFrame, geometry_msgs/PoseStamped) → planar :class:`Odometry`.
+
+    Raises:
+        RecordingError: the message has no pose or an invalid orientation.
+    """
+    try:
+        pose = msg.pose
+        pose = getattr(pose, "pose", pose)  # PoseWithCovariance → Pose
+        x, y, _ = _xyz(pose.position)
+        q = _xyzw(pose.orientation)
+        if not all(math.isfinite(v) for v in (x, y, *q)) or sum(v * v for v in q) < 1e-12:
+            raise ValueError("non-finite position or zero quaternion")
+        return Odometry(
+            stamp_ns_of(msg, stamp_ns),
+            _frame_of(msg),
+            norm_frame(getattr(msg, "child_frame_id", "")),
+            Pose2(x, y, yaw_from_quat(*q)),
+        )
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise RecordingError(f"not a decodable odometry message: {exc}") from None
+
+
+def decode_tf(msg: Any) -> list[tuple[str, str, int, Pose3]]:
+    """tf2_msgs/TFMessage (or a single TransformStamped, foxglove.FrameTransform(s)) → transforms.
+
+    Returns:
+        ``(parent, child, stamp_ns, T_parent_child)`` per transform; transforms with a non-finite value
+        or a zero quaternion are left out.
+    """
+    items = msg.transforms if hasattr(msg, "transforms") else [msg]
+    out: list[tuple[str, str, int, Pose3]] = []
+    for tr in items:
+        try:
+            if hasattr(tr, "transform"):  # geometry_msgs/TransformStamped
+                parent, child = _frame_of(tr), norm_frame(tr.child_frame_id)
+                t, q = _xyz(tr.transform.translation), _xyzw(tr.transform.rotation)
+            else:  # foxglove.FrameTransform
+                parent, child = norm_frame(tr.parent_frame_id), norm_frame(tr.child_frame_id)
+                t, q = _xyz(tr.translation), _xyzw(tr.rotation)
+            if not all(math.isfinite(v) for v in (*t, *q)) or sum(v * v for v in q) < 1e-12:
+                continue
+            if not parent or not child or parent == child:
+                continue
+            out.append((parent, child, stamp_ns_of(tr), Pose3.from_quat(t, q)))
+        except (AttributeError, TypeError, ValueError):
+            continue
+    return out

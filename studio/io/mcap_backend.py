@@ -1,0 +1,144 @@
+"""Plain (non-ROS-profile) MCAP files, read with the ``mcap`` library.
+
+What is decoded, per channel ``message_encoding``:
+
+* ``json`` — the JSON document becomes nested attribute objects (:class:`types.SimpleNamespace`), so the
+  decoders of :mod:`studio.io.decode` see ROS-shaped messages (``header.stamp.sec``, ``ranges`` …) or
+  Foxglove-shaped ones (``foxglove.LaserScan``, ``foxglove.CompressedImage`` with base64 ``data``,
+  ``foxglove.RawImage``, ``foxglove.FrameTransform(s)``, ``foxglove.PoseInFrame``) exactly as with a bag;
+* ``cdr`` with a ``ros2msg`` / ``ros2idl`` schema and ``ros1`` with a ``ros1msg`` schema — deserialized with
+  ``rosbags`` from the schema embedded in the file (e.g. an MCAP written by a ROS tool with another
+  profile);
+* anything else (protobuf, flatbuffer, schemaless CDR) is listed by ``inspect`` but cannot be decoded:
+  :meth:`McapBackend.decode` raises and the caller reports it.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any, BinaryIO
+
+from studio.io.base import RawMessage, TopicInfo
+from studio.io.errors import RecordingError
+
+__all__ = ["McapBackend", "json_to_namespace"]
+
+
+def json_to_namespace(value: Any) -> Any:
+    """Nested dicts → :class:`SimpleNamespace` (lists kept as lists), for attribute access."""
+    if isinstance(value, dict):
+        return SimpleNamespace(**{str(k): json_to_namespace(v) for k, v in value.items()})
+    if isinstance(value, list):
+        return [json_to_namespace(v) for v in value]
+    return value
+
+
+class McapBackend:
+    """Reads a non-ROS MCAP file (see the module docstring for what decodes)."""
+
+    def __init__(self, path: Path) -> None:
+        from mcap.reader import make_reader
+
+        self.path = path
+        self._file: BinaryIO | None = path.open("rb")
+        try:
+            self.reader = make_reader(self._file)
+            summary = self.reader.get_summary()
+            self._channels: dict[str, tuple[str, str, str, bytes]] = {}  # topic → (msg enc, name, enc, data)
+            counts: dict[str, int] = {}
+            start = end = 0
+            if summary is not None and summary.statistics is not None:
+                for ch in summary.channels.values():
+                    self._add_channel(ch, summary.schemas.get(ch.schema_id))
+                    counts[ch.topic] = counts.get(ch.topic, 0) + int(
+                        summary.statistics.channel_message_counts.get(ch.id, 0)
+                    )
+                if summary.statistics.message_count:
+                    start = int(summary.statistics.message_start_time)
+                    end = int(summary.statistics.message_end_time)
+            else:  # no summary: one scan over the file for the counts
+                first = True
+                for schema, ch, msg in self.reader.iter_messages(log_time_order=False):
+                    if ch.topic not in self._channels:
+                        self._add_channel(ch, schema)
+                    counts[ch.topic] = counts.get(ch.topic, 0) + 1
+                    t = int(msg.log_time)
+                    start, end = (t, t) if first else (min(start, t), max(end, t))
+                    first = False
+            self.topics = {
+                t: TopicInfo(t, self._channels[t][1], counts.get(t, 0)) for t in sorted(self._channels)
+            }
+            self.start_ns, self.end_ns = start, end
+            self._typestore: Any = None
+            self._registered: set[str] = set()
+        except BaseException:
+            self.close()
+            raise
+
+    def _add_channel(self, channel: Any, schema: Any) -> None:
+        if schema is None:
+            self._channels[channel.topic] = (channel.message_encoding, "", "", b"")
+        else:
+            self._channels[channel.topic] = (
+                channel.message_encoding,
+                str(schema.name),
+                str(schema.encoding),
+                bytes(schema.data),
+            )
+
+    def messages(
+        self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[RawMessage]:
+        for _schema, ch, msg in self.reader.iter_messages(
+            topics=topics, starting_at=start_ns, ending_before=stop_ns
+        ):
+            name = self._channels.get(ch.topic, ("", "", "", b""))[1]
+            yield RawMessage(ch.topic, name, int(msg.log_time), bytes(msg.data))
+
+    def _ros_type(self, name: str, schema_enc: str, schema_data: bytes) -> str:
+        from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+
+        if self._typestore is None:
+            self._typestore = get_typestore(Stores.EMPTY)
+        typename = name if "/msg/" in name else name.replace("/", "/msg/", 1)
+        if typename not in self._registered:
+            text = schema_data.decode("utf-8")
+            if schema_enc == "ros2idl":
+                types = get_types_from_idl(text)
+            else:
+                types = get_types_from_msg(text, typename)
+            new = {k: v for k, v in types.items() if k not in self._typestore.fielddefs}
+            if new:
+                self._typestore.register(new)
+            self._registered.add(typename)
+        return typename
+
+    def decode(self, raw: RawMessage) -> Any:
+        msg_enc, name, schema_enc, schema_data = self._channels.get(raw.topic, ("", "", "", b""))
+        if msg_enc == "json":
+            return json_to_namespace(json.loads(raw.rawdata))
+        if msg_enc == "cdr" and schema_enc in ("ros2msg", "ros2idl"):
+            return self._typestore_of(name, schema_enc, schema_data).deserialize_cdr(
+                raw.rawdata, self._ros_type(name, schema_enc, schema_data)
+            )
+        if msg_enc == "ros1" and schema_enc == "ros1msg":
+            return self._typestore_of(name, schema_enc, schema_data).deserialize_ros1(
+                raw.rawdata, self._ros_type(name, schema_enc, schema_data)
+            )
+        raise RecordingError(
+            f"{self.path}: topic {raw.topic} uses message encoding '{msg_enc}' with schema encoding "
+            f"'{schema_enc}', which studio cannot decode "
+            "(supported: json, cdr + ros2msg/ros2idl, ros1 + ros1msg)"
+        )
+
+    def _typestore_of(self, name: str, schema_enc: str, schema_data: bytes) -> Any:
+        self._ros_type(name, schema_enc, schema_data)
+        return self._typestore
+
+    def close(self) -> None:
+        f, self._file = self._file, None
+        if f is not None:
+            f.close()

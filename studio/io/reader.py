@@ -1,0 +1,273 @@
+"""Open a recording and read its raw records: ROS1 ``.bag``, ROS2 (folder, ``.db3``, ``.mcap``), plain MCAP.
+
+ROS bags are read with ``rosbags``' AnyReader. ROS1 bags carry their own message definitions (custom types
+included); ROS2 bags that carry none are decoded with the ROS2 Humble type store (types missing from a
+bag's own definitions are taken from it too). An ``.mcap`` file whose profile is not ``ros2`` is read
+with the ``mcap`` library (see :mod:`studio.io.mcap_backend`).
+
+Reading yields :class:`~studio.io.base.RawMessage` records in log-time order; decoding is a separate
+step (:meth:`Recording.decode`, then :mod:`studio.io.decode`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Literal, Protocol
+
+from studio.io.base import RawMessage, TopicInfo
+from studio.io.errors import RecordingError
+
+__all__ = ["Recording", "open_recording"]
+
+Kind = Literal["ros1", "ros2", "mcap"]
+
+
+class _Backend(Protocol):
+    topics: dict[str, TopicInfo]
+    start_ns: int
+    end_ns: int
+
+    def messages(
+        self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[RawMessage]: ...
+
+    def decode(self, raw: RawMessage) -> Any: ...
+
+    def close(self) -> None: ...
+
+
+def _reason(exc: BaseException) -> str:
+    text = " ".join(str(a) for a in exc.args) if exc.args else ""
+    text = " ".join((text or type(exc).__name__).split())
+    return text[:300]
+
+
+class _RosbagsBackend:
+    """ROS1 / ROS2 bags through rosbags' AnyReader."""
+
+    def __init__(self, path: Path, kind: Kind) -> None:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        store = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
+        self.path = path
+        self.reader = AnyReader([path], default_typestore=store)
+        self.reader.open()
+        try:
+            self._complete_types(store)
+            self.topics: dict[str, TopicInfo] = {}
+            self._conns: dict[str, list[Any]] = {}
+            for conn in self.reader.connections:
+                self._conns.setdefault(conn.topic, []).append(conn)
+            for name, conns in sorted(self._conns.items()):
+                self.topics[name] = TopicInfo(name, conns[0].msgtype, sum(int(c.msgcount) for c in conns))
+            count = sum(t.count for t in self.topics.values())
+            self.start_ns = int(self.reader.start_time) if count else 0
+            # rosbags' end_time is one past the last message
+            self.end_ns = int(self.reader.end_time) - 1 if count else 0
+        except BaseException:
+            self.close()
+            raise
+
+    def _complete_types(self, store: Any) -> None:
+        """Register default types for connections whose type the bag did not define."""
+        ts = self.reader.typestore
+        missing = [c.msgtype for c in self.reader.connections if c.msgtype not in ts.fielddefs]
+        if not missing:
+            return
+        extra = {k: v for k, v in store.fielddefs.items() if k not in ts.fielddefs}
+        if extra:
+            ts.register(extra)
+
+    def messages(
+        self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[RawMessage]:
+        if topics is None:
+            conns: list[Any] = []
+        else:
+            conns = [c for t in topics for c in self._conns.get(t, [])]
+            if not conns:
+                return
+        for conn, log_ns, raw in self.reader.messages(connections=conns, start=start_ns, stop=stop_ns):
+            yield RawMessage(conn.topic, conn.msgtype, int(log_ns), bytes(raw))
+
+    def decode(self, raw: RawMessage) -> Any:
+        return self.reader.deserialize(raw.rawdata, raw.msgtype)
+
+    def close(self) -> None:
+        if self.reader.stack is not None:
+            self.reader.close()
+
+
+class Recording:
+    """An open recording. Use as a context manager (or call :meth:`close`).
+
+    Attributes:
+        path: the file or directory.
+        kind: ``"ros1"``, ``"ros2"`` or ``"mcap"`` (plain, non-ROS MCAP).
+        topics: topic name → :class:`TopicInfo` (type and message count).
+        start_ns: log time of the first message, ns (0 when empty).
+        end_ns: log time of the last message, ns (0 when empty).
+    """
+
+    def __init__(self, path: Path, kind: Kind, backend: _Backend) -> None:
+        self.path = path
+        self.kind: Kind = kind
+        self._backend: _Backend | None = backend
+        self.topics: dict[str, TopicInfo] = dict(backend.topics)
+        self.start_ns: int = backend.start_ns
+        self.end_ns: int = backend.end_ns
+
+    def __repr__(self) -> str:
+        return f"Recording({str(self.path)!r}, kind={self.kind!r}, topics={len(self.topics)})"
+
+    def __enter__(self) -> Recording:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Release the file (idempotent)."""
+        backend, self._backend = self._backend, None
+        if backend is not None:
+            backend.close()
+
+    @property
+    def duration_ns(self) -> int:
+        return max(0, self.end_ns - self.start_ns)
+
+    def _open_backend(self) -> _Backend:
+        if self._backend is None:
+            raise RecordingError(f"{self.path}: recording is closed")
+        return self._backend
+
+    def resolve_topic(self, name: str) -> str:
+        """The recording's spelling of topic ``name`` (a leading ``/`` may differ, as in old ROS1 bags).
+
+        Raises:
+            RecordingError: no such topic; the message lists the topics the recording has.
+        """
+        if name in self.topics:
+            return name
+        alt = name.lstrip("/")
+        for cand in (alt, "/" + alt):
+            if cand in self.topics:
+                return cand
+        have = ", ".join(f"{t} ({i.msgtype})" for t, i in self.topics.items()) or "none"
+        raise RecordingError(f"{self.path}: no topic '{name}' in the recording (it has: {have})")
+
+    def has_topic(self, name: str) -> bool:
+        try:
+            self.resolve_topic(name)
+        except RecordingError:
+            return False
+        return True
+
+    def messages(
+        self,
+        topics: Iterable[str] | None = None,
+        *,
+        start_ns: int | None = None,
+        stop_ns: int | None = None,
+    ) -> Iterator[RawMessage]:
+        """Raw records in log-time order.
+
+        Args:
+            topics: topics to read (spelling as in :meth:`resolve_topic`); None reads every topic.
+            start_ns: only records logged at or after this time, ns.
+            stop_ns: only records logged before this time, ns.
+
+        Raises:
+            RecordingError: an unknown topic, or the file turns out unreadable while reading.
+        """
+        backend = self._open_backend()
+        names = None if topics is None else sorted({self.resolve_topic(t) for t in topics})
+        it = backend.messages(names, start_ns, stop_ns)
+        while True:
+            try:
+                raw = next(it)
+            except StopIteration:
+                return
+            except RecordingError:
+                raise
+            except Exception as exc:
+                raise RecordingError(
+                    f"{self.path}: cannot read the recording (truncated or corrupt?): {_reason(exc)}"
+                ) from exc
+            yield raw
+
+    def decode(self, raw: RawMessage) -> Any:
+        """Deserialize a raw record into a message object (ROS field names; plain MCAP JSON as attributes).
+
+        Raises:
+            RecordingError: the record cannot be deserialized.
+        """
+        backend = self._open_backend()
+        try:
+            return backend.decode(raw)
+        except RecordingError:
+            raise
+        except Exception as exc:
+            raise RecordingError(
+                f"{self.path}: cannot decode a {raw.msgtype} message on {raw.topic} "
+                f"at {raw.log_ns} ns: {_reason(exc)}"
+            ) from exc
+
+
+def _mcap_profile(path: Path) -> str:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        return str(make_reader(f).get_header().profile)
+
+
+def open_recording(path: str | os.PathLike[str]) -> Recording:
+    """Open a recording for reading.
+
+    Args:
+        path: a ROS1 ``.bag``; a ROS2 bag directory (with ``metadata.yaml``), ``.db3`` or ``.mcap`` file;
+            or a plain MCAP file (any other profile).
+
+    Raises:
+        RecordingError: missing path, unknown format, or a corrupt/truncated/unreadable file (one line).
+    """
+    p = Path(path)
+    if not p.exists():
+        raise RecordingError(f"recording not found: {p}")
+    kind: Kind
+    try:
+        if p.is_dir():
+            if not (p / "metadata.yaml").exists():
+                raise RecordingError(f"{p}: a directory recording must be a ROS2 bag with metadata.yaml")
+            kind = "ros2"
+        elif p.suffix == ".bag":
+            kind = "ros1"
+        elif p.suffix == ".db3":
+            kind = "ros2"
+        elif p.suffix == ".mcap":
+            kind = "ros2" if _mcap_profile(p) == "ros2" else "mcap"
+        else:
+            raise RecordingError(
+                f"{p}: unknown recording format '{p.suffix}' "
+                "(expected .bag, .db3, .mcap or a ROS2 bag folder)"
+            )
+        backend: _Backend
+        if kind == "mcap":
+            from studio.io.mcap_backend import McapBackend
+
+            backend = McapBackend(p)
+        else:
+            backend = _RosbagsBackend(p, kind)
+    except RecordingError:
+        raise
+    except Exception as exc:
+        raise RecordingError(
+            f"{p}: cannot open the recording (truncated or corrupt?): {_reason(exc)}"
+        ) from exc
+    return Recording(p, kind, backend)

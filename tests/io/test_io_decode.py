@@ -1,0 +1,243 @@
+"""Decoders (raw image encodings, Foxglove/JSON shapes) and plain (non-ROS) MCAP reading."""
+
+from __future__ import annotations
+
+import base64
+import json
+from pathlib import Path
+from types import SimpleNamespace as NS  # noqa: N814 — short name keeps the message tables readable
+
+import cv2
+import numpy as np
+import pytest
+from io_testdata import T0
+
+from studio.geometry.se import Pose2
+from studio.io import (
+    Frame,
+    LaserScan,
+    Panorama,
+    RecordingError,
+    ScanInBase,
+    SyncReport,
+    decode_odometry,
+    decode_panorama,
+    decode_scan,
+    decode_tf,
+    iter_frames,
+    open_recording,
+    parse_rig,
+)
+
+BGR = np.zeros((4, 6, 3), np.uint8)
+BGR[..., 0], BGR[..., 1], BGR[..., 2] = 10, 20, 30  # B, G, R
+
+
+def _stamp(ns: int) -> NS:
+    return NS(sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def _raw(encoding: str, data: np.ndarray, *, step: int = 0, bigendian: bool = False) -> NS:
+    h, w = data.shape[:2]
+    flat = np.ascontiguousarray(data).view(np.uint8).reshape(h, -1)
+    if step:
+        flat = np.concatenate([flat, np.zeros((h, step - flat.shape[1]), np.uint8)], axis=1)
+    return NS(
+        header=NS(stamp=_stamp(T0), frame_id="/cam"),
+        height=h, width=w, encoding=encoding, is_bigendian=int(bigendian), step=flat.shape[1],
+        data=flat.reshape(-1),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("encoding", "pixels", "step", "expect"),
+    [
+        ("bgr8", BGR, 0, (10, 20, 30)),
+        ("rgb8", BGR[..., ::-1], 0, (10, 20, 30)),
+        ("rgb8", BGR[..., ::-1], 24, (10, 20, 30)),  # padded rows
+        ("bgra8", np.dstack([BGR, np.full((4, 6), 255, np.uint8)]), 0, (10, 20, 30)),
+        ("rgba8", np.dstack([BGR[..., ::-1], np.full((4, 6), 255, np.uint8)]), 0, (10, 20, 30)),
+        ("mono8", np.full((4, 6), 77, np.uint8), 0, (77, 77, 77)),
+        ("8UC1", np.full((4, 6), 77, np.uint8), 0, (77, 77, 77)),
+        ("mono16", np.full((4, 6), 0x4D00, "<u2"), 0, (77, 77, 77)),
+    ],
+)
+def test_raw_image_encodings(encoding: str, pixels: np.ndarray, step: int, expect: tuple) -> None:
+    pano = decode_panorama(_raw(encoding, pixels, step=step))
+    assert pano.image.shape == (4, 6, 3)
+    assert pano.image.dtype == np.uint8
+    assert tuple(int(v) for v in pano.image[2, 3]) == expect
+    assert pano.frame_id == "cam"
+    assert pano.stamp_ns == T0
+    assert pano.encoded is None
+    assert pano.encoding == ""
+
+
+def test_big_endian_mono16() -> None:
+    pano = decode_panorama(_raw("mono16", np.full((4, 6), 0x4D00, ">u2"), bigendian=True))
+    assert int(pano.image[0, 0, 0]) == 77
+
+
+@pytest.mark.parametrize(
+    ("msg", "match"),
+    [
+        (_raw("32FC1", np.zeros((4, 6), np.float32)), "unsupported raw image encoding"),
+        (
+            NS(
+                header=NS(stamp=_stamp(0), frame_id=""),
+                height=4,
+                width=6,
+                encoding="rgb8",
+                step=18,
+                data=np.zeros(10, np.uint8),
+            ),
+            "too short",
+        ),
+        (
+            NS(header=NS(stamp=_stamp(0), frame_id=""), format="jpeg", data=np.zeros(10, np.uint8)),
+            "does not decode",
+        ),
+        (NS(header=NS(stamp=_stamp(0), frame_id="")), "cannot decode image"),
+    ],
+)
+def test_bad_images(msg: NS, match: str) -> None:
+    with pytest.raises(RecordingError, match=match):
+        decode_panorama(msg)
+
+
+def test_png_keeps_encoded_bytes() -> None:
+    ok, png = cv2.imencode(".png", BGR)
+    assert ok
+    pano = decode_panorama(NS(header=NS(stamp=_stamp(5), frame_id="c"), format="png", data=png.reshape(-1)))
+    assert pano.encoding == "png"
+    assert pano.encoded == png.tobytes()
+    np.testing.assert_array_equal(pano.image, BGR)
+
+
+def test_zero_stamp_uses_fallback_and_scan_checks() -> None:
+    msg = NS(
+        header=NS(stamp=_stamp(0), frame_id="/laser"), angle_min=-1.0, angle_max=1.0, angle_increment=0.5,
+        range_min=0.1, range_max=5.0, ranges=[1.0, np.nan, np.inf, 0.05, 6.0], intensities=[],
+    )  # fmt: skip
+    scan = decode_scan(msg, 1234)
+    assert scan.stamp_ns == 1234
+    assert scan.frame_id == "laser"
+    assert scan.intensities is None
+    assert scan.valid().tolist() == [True, False, False, False, False]
+    with pytest.raises(RecordingError, match="not a decodable laser scan"):
+        decode_scan(NS(header=msg.header))
+
+
+def test_base_types_are_checked() -> None:
+    with pytest.raises(TypeError, match="stamp_ns must be an int"):
+        LaserScan(1.5, "l", 0.0, 0.1, np.zeros(3), 0.0, 1.0)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="intensities"):
+        LaserScan(1, "l", 0.0, 0.1, np.zeros(3), 0.0, 1.0, np.zeros(2))
+    with pytest.raises(ValueError, match="uint8"):
+        Panorama(1, "c", np.zeros((2, 2), np.uint8))
+    with pytest.raises(TypeError, match="robot_pose"):
+        Frame(0, 1, None, (), None)  # type: ignore[arg-type]
+    scan = LaserScan(1, "l", 0.0, np.pi / 2, np.array([1.0, 2.0, np.nan]), 0.0, 10.0)
+    np.testing.assert_allclose(scan.points()[:2], [[1, 0], [0, 2]], atol=1e-7)
+    from studio.geometry.se import Pose3
+
+    sib = ScanInBase("/s", scan, Pose3.from_xyz_rpy(1.0, 0.0, 0.5, 0.0, 0.0, np.pi))
+    np.testing.assert_allclose(sib.points_base(), [[0, 0, 0.5], [1, -2, 0.5]], atol=1e-7)
+
+
+def test_odometry_and_tf_shapes() -> None:
+    q = NS(x=0.0, y=0.0, z=np.sin(0.25), w=np.cos(0.25))
+    ros = NS(header=NS(stamp=_stamp(7), frame_id="/odom"), child_frame_id="/base_link",
+             pose=NS(pose=NS(position=NS(x=1.0, y=2.0, z=0.0), orientation=q)))  # fmt: skip
+    od = decode_odometry(ros)
+    assert (od.frame_id, od.child_frame_id, od.stamp_ns) == ("odom", "base_link", 7)
+    assert od.pose == Pose2(1.0, 2.0, pytest.approx(0.5))
+    fox = NS(timestamp=NS(sec=1, nsec=5), frame_id="odom",
+             pose=NS(position=NS(x=1.0, y=2.0, z=0.0), orientation=q))  # fmt: skip
+    assert decode_odometry(fox).stamp_ns == 1_000_000_005
+    tfm = NS(transforms=[
+        NS(header=NS(stamp=_stamp(9), frame_id="/a"), child_frame_id="b",
+           transform=NS(translation=NS(x=1.0, y=0.0, z=0.0), rotation=q)),
+        NS(header=NS(stamp=_stamp(9), frame_id="a"), child_frame_id="c",  # zero quaternion: left out
+           transform=NS(translation=NS(x=1.0, y=0.0, z=0.0), rotation=NS(x=0.0, y=0.0, z=0.0, w=0.0))),
+        NS(timestamp=NS(sec=0, nsec=3), parent_frame_id="a", child_frame_id="d",
+           translation=NS(x=0.0, y=1.0, z=0.0), rotation=q),
+    ])  # fmt: skip
+    out = decode_tf(tfm)
+    assert [(p, c, s) for p, c, s, _ in out] == [("a", "b", 9), ("a", "d", 3)]
+
+
+def _write_json_mcap(path: Path) -> None:
+    from mcap.writer import Writer
+
+    with path.open("wb") as f:
+        w = Writer(f)
+        w.start(profile="", library="studio-tests")
+        ids = {}
+        for topic, schema in [("/scan", "foxglove.LaserScan"), ("/cam", "foxglove.CompressedImage"),
+                              ("/tf", "foxglove.FrameTransforms"), ("/other", "my.Proto")]:  # fmt: skip
+            sid = w.register_schema(name=schema, encoding="jsonschema", data=b"{}")
+            enc = "protobuf" if topic == "/other" else "json"
+            ids[topic] = w.register_channel(topic=topic, message_encoding=enc, schema_id=sid)
+        ok, jpg = cv2.imencode(".jpg", np.full((8, 16, 3), 100, np.uint8))
+        assert ok
+        for k in range(5):
+            t = T0 + k * 100_000_000
+            ts = {"sec": t // 10**9, "nsec": t % 10**9}
+            scan = {"timestamp": ts, "frame_id": "laser", "start_angle": -1.0, "end_angle": 1.0,
+                    "ranges": [1.0, 2.0, 3.0, None], "intensities": []}  # fmt: skip
+            scan["ranges"][3] = 4.0
+            img = {
+                "timestamp": ts,
+                "frame_id": "cam",
+                "format": "jpeg",
+                "data": base64.b64encode(jpg.tobytes()).decode(),
+            }
+            tf = {"transforms": [{"timestamp": ts, "parent_frame_id": "base", "child_frame_id": "laser",
+                                  "translation": {"x": 0.2, "y": 0.0, "z": 0.1},
+                                  "rotation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}]}  # fmt: skip
+            for topic, doc in (("/tf", tf), ("/scan", scan), ("/cam", img)):
+                w.add_message(ids[topic], log_time=t, data=json.dumps(doc).encode(), publish_time=t)
+            w.add_message(ids["/other"], log_time=t, data=b"\x08\x01", publish_time=t)
+        w.finish()
+
+
+def test_plain_json_mcap(tmp_path: Path) -> None:
+    p = tmp_path / "plain.mcap"
+    _write_json_mcap(p)
+    rig = parse_rig({"base_frame": "base", "camera": {"topic": "/cam"}, "lasers": [{"topic": "/scan"}]})
+    with open_recording(p) as rec:
+        assert rec.kind == "mcap"
+        assert rec.topics["/scan"].msgtype == "foxglove.LaserScan"
+        assert rec.topics["/scan"].count == 5
+        assert rec.start_ns == T0
+        report = SyncReport()
+        frames = list(iter_frames(rec, rig, report=report))
+        other = next(iter(rec.messages(["/other"])))
+        with pytest.raises(RecordingError, match="protobuf"):
+            rec.decode(other)
+    assert len(frames) == 5
+    assert frames[0].panorama is not None
+    s = frames[2].scans[0]
+    assert len(s.scan) == 4
+    assert s.scan.angle_increment == pytest.approx(2 / 3)
+    np.testing.assert_allclose(s.sensor_pose.t, (0.2, 0.0, 0.1))
+
+
+def test_mcap_without_summary(tmp_path: Path) -> None:
+    """An MCAP without statistics or chunk index: counted and read by a linear scan."""
+    from mcap.writer import Writer
+
+    p = tmp_path / "nosummary.mcap"
+    with p.open("wb") as f:
+        w = Writer(f, use_chunking=False, use_statistics=False, repeat_channels=False, repeat_schemas=False)
+        w.start(profile="", library="t")
+        sid = w.register_schema(name="x", encoding="jsonschema", data=b"{}")
+        cid = w.register_channel(topic="/j", message_encoding="json", schema_id=sid)
+        for k in range(3):
+            w.add_message(cid, log_time=T0 + k, data=b'{"a": 1}', publish_time=T0 + k)
+        w.finish()
+    with open_recording(p) as rec:
+        assert rec.topics["/j"].count == 3
+        assert rec.end_ns == T0 + 2
+        assert rec.decode(next(iter(rec.messages(["/j"])))).a == 1

@@ -1,0 +1,102 @@
+"""``studio inspect`` on real and synthetic recordings, and on bad input (exit 2, one line)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from io_testdata import DATA, bag
+
+from studio.cli import main
+
+
+def test_inspect_every_real_bag(capsys: pytest.CaptureFixture[str]) -> None:
+    if not DATA.exists():
+        pytest.skip("real data not available")
+    for p in sorted(DATA.rglob("*.bag")):
+        assert main(["inspect", str(p)]) == 0, p
+        out = capsys.readouterr().out
+        assert "topics (" in out
+        assert "sensor_msgs/msg/LaserScan" in out
+        assert "TF: none" in out
+
+
+def test_inspect_real_bag_with_rig(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        "base_frame: left_laser\nlasers:\n  - topic: /left_scan\n  - topic: /rear_scan\n"
+        "    pose: {x: -0.5, yaw: 3.14}\nsync: {max_dt_s: 0.05}\n"
+    )
+    assert main(["inspect", str(bag("negative_2.bag")), "--rig", str(rig)]) == 0
+    out = capsys.readouterr().out
+    assert "/left_scan" in out
+    assert "768 beams" in out
+    assert "7.51 Hz" in out
+    assert "header stamps: first − log time +0.241 s" in out
+    assert "frames: 435 yielded of 435 (scans of /left_scan)" in out
+    assert "laser /rear_scan: scan in" in out
+    assert "warning: the rig has no odometry" in out
+
+
+def test_inspect_synthetic_shows_tf_tree(
+    synthetic: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        "base_frame: base_link\nodometry: {topic: /odom}\ncamera: {topic: /camera/image/compressed}\n"
+        "lasers:\n  - topic: /scan_front\n  - topic: /scan_back\n"
+    )
+    assert main(["inspect", str(synthetic), "--rig", str(rig)]) == 0
+    out = capsys.readouterr().out
+    assert "ROS2 bag" in out
+    assert "frame 'camera', 64×32, jpeg" in out
+    assert "odom → base_link (dynamic, 201 samples, 50.0 Hz)" in out
+    assert "base_link → front_laser (static)" in out
+    assert "frames: 40 yielded of 40 (camera images on /camera/image/compressed)" in out
+
+
+def _one_error_line(args: list[str]) -> str:
+    proc = subprocess.run(
+        [sys.executable, "-m", "studio.cli", *args], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    return lines[0]
+
+
+def test_inspect_truncated_bag_exits_2_with_one_line(tmp_path: Path) -> None:
+    data = bag("demo_stationary_simple_environment.bag").read_bytes()
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(data[: len(data) // 3])
+    line = _one_error_line(["inspect", str(cut)])
+    assert line.startswith("studio inspect: error:")
+    assert "cut.bag" in line
+    assert "truncated or corrupt" in line
+
+
+@pytest.mark.parametrize(
+    ("rig_text", "match"),
+    [
+        ("base_frame: laser\nlasers: [{topic: /scan_front}]\n", "'/scan_front' is not in the recording"),
+        ("base_frame: base_link\nlasers: [{topic: /scan}]\n", "not in the TF tree"),
+        ("base_frame: laser\nlasers: [{topic: /scan}]\nbogus: 1\n", "key 'bogus' is not a known key"),
+    ],
+)
+def test_inspect_bad_rig_exits_2(
+    tmp_path: Path, rig_text: str, match: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(rig_text)
+    assert main(["inspect", str(bag("demo_stationary_simple_environment.bag")), "--rig", str(rig)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert match in err[0]
+
+
+def test_inspect_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["inspect", str(tmp_path / "none.bag")]) == 2
+    assert "recording not found" in capsys.readouterr().err

@@ -1,0 +1,127 @@
+"""rig.yaml: load, validate (clear messages naming the file and key), save round trip."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.geometry.se import Pose3
+from studio.io import CameraConfig, LaserConfig, OdometryConfig, Rig, RigError, SyncConfig, load_rig, save_rig
+
+DESIGN_EXAMPLE = """\
+base_frame: base_link            # any frame of the TF tree in the bag; labels are expressed in it
+odometry: {topic: /odom}         # or {tf: odom}; absent → static robot, with a warning
+camera:
+  topic: /theta_camera/image/compressed     # sensor_msgs/CompressedImage or Image, equirectangular
+  pose: {x: 0.0, y: 0.0, z: 1.15, roll: 0.0, pitch: 0.0, yaw: 0.0}   # in base_frame, from calibration
+lasers:
+  - topic: /scan_front                       # sensor_msgs/LaserScan; one or more
+    pose: {x: 0.35, y: 0.0, z: 0.30, yaw: 0.0}  # optional: else from /tf_static or /tf in the bag
+sync: {max_dt_s: 0.05, camera_latency_s: 0.0}
+"""
+
+
+def test_design_example_loads(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text(DESIGN_EXAMPLE)
+    rig = load_rig(p)
+    assert rig.base_frame == "base_link"
+    assert rig.odometry == OdometryConfig(topic="/odom")
+    assert rig.camera is not None
+    assert rig.camera.topic == "/theta_camera/image/compressed"
+    assert rig.camera.pose is not None
+    np.testing.assert_allclose(rig.camera.pose.t, (0, 0, 1.15))
+    assert len(rig.lasers) == 1
+    assert rig.lasers[0].pose is not None
+    np.testing.assert_allclose(rig.lasers[0].pose.t, (0.35, 0, 0.3))
+    assert rig.sync == SyncConfig(0.05, 0.0)
+    assert rig.topics() == ["/theta_camera/image/compressed", "/scan_front", "/odom"]
+
+
+def test_save_load_round_trip(tmp_path: Path) -> None:
+    rig = Rig(
+        base_frame="/base_link",
+        odometry=OdometryConfig(tf="odom"),
+        camera=CameraConfig("/cam", Pose3.from_xyz_rpy(0.1, 0.2, 1.1, 0.01, -0.02, 0.3)),
+        lasers=(LaserConfig("/front", Pose3.from_xyz_rpy(0.35, 0, 0.3, 0, 0, 0)), LaserConfig("/back")),
+        sync=SyncConfig(max_dt_s=0.03, camera_latency_s=0.02),
+    )
+    p = tmp_path / "rig.yaml"
+    save_rig(rig, p)
+    text = p.read_text()
+    assert "odometry: {tf: odom}" in text
+    assert "pose: {x: 0.1, y: 0.2, z: 1.1, roll: 0.01" in text
+    back = load_rig(p)
+    assert back.base_frame == "base_link"
+    assert back.to_dict() == rig.to_dict()
+    assert back.lasers[1].pose is None
+    assert back.camera is not None
+    assert back.camera.pose is not None
+    assert rig.camera is not None
+    np.testing.assert_allclose(back.camera.pose.matrix(), rig.camera.pose.matrix(), atol=1e-12)
+
+
+def test_laser_only_rig_and_defaults(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text("base_frame: laser\nlasers:\n  - topic: /scan\n")
+    rig = load_rig(p)
+    assert rig.camera is None
+    assert rig.odometry is None
+    assert rig.sync == SyncConfig()
+    assert rig.sync.max_dt_ns == 50_000_000
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("", "is empty"),
+        ("[1, 2]", "must be a mapping"),
+        ("base_frame: b\nlasers: [{topic: /s}]\ncolour: red\n", "key 'colour' is not a known key"),
+        ("lasers: [{topic: /s}]\n", "key 'base_frame' is required"),
+        ("base_frame: 3\nlasers: [{topic: /s}]\n", "key 'base_frame' must be a non-empty string"),
+        ("base_frame: b\n", "needs at least one laser or a camera"),
+        ("base_frame: b\nlasers: []\n", "needs at least one laser or a camera"),
+        ("base_frame: b\nlasers: {topic: /s}\n", "key 'lasers' must be a list"),
+        ("base_frame: b\nlasers: [{pose: {x: 1}}]\n", r"key 'lasers\[0\].topic' is required"),
+        (
+            "base_frame: b\nlasers: [{topic: /s, pose: {x: one}}]\n",
+            r"key 'lasers\[0\].pose.x' must be a finite number",
+        ),
+        (
+            "base_frame: b\nlasers: [{topic: /s, pose: {x: 1, q: 2}}]\n",
+            r"key 'lasers\[0\].pose.q' is not a known key",
+        ),
+        ("base_frame: b\nlasers: [{topic: /s}, {topic: /s}]\n", "listed twice"),
+        ("base_frame: b\nlasers: [{topic: /s}]\nodometry: {topic: /o, tf: odom}\n", "exactly one of"),
+        ("base_frame: b\nlasers: [{topic: /s}]\nodometry: {}\n", "exactly one of"),
+        (
+            "base_frame: b\nlasers: [{topic: /s}]\nodometry: {topc: /o}\n",
+            "key 'odometry.topc' is not a known key",
+        ),
+        ("base_frame: b\ncamera: {pose: {x: 0}}\n", "key 'camera.topic' is required"),
+        ("base_frame: b\ncamera: /cam\n", "key 'camera' must be a mapping"),
+        ("base_frame: b\nlasers: [{topic: /s}]\nsync: {max_dt_s: -1}\n", "key 'sync.max_dt_s' must be >= 0"),
+        ("base_frame: b\nlasers: [{topic: /s}]\nsync: {max_dt_s: .nan}\n", "must be a finite number"),
+        (
+            "base_frame: b\nlasers: [{topic: /s}]\nsync: {latency: 1}\n",
+            "key 'sync.latency' is not a known key",
+        ),
+        ("base_frame: b\nlasers: [{topic: /s}\n", "not valid YAML"),
+        ("base_frame: b\nlasers: [{topic: /s, pose: {yaw: true}}]\n", "must be a finite number"),
+    ],
+)
+def test_bad_rigs(tmp_path: Path, text: str, match: str) -> None:
+    p = tmp_path / "bad_rig.yaml"
+    p.write_text(text)
+    with pytest.raises(RigError, match=match) as info:
+        load_rig(p)
+    msg = str(info.value)
+    assert str(p) in msg
+    assert "\n" not in msg
+
+
+def test_missing_rig_file(tmp_path: Path) -> None:
+    with pytest.raises(RigError, match="rig file not found"):
+        load_rig(tmp_path / "nope.yaml")
