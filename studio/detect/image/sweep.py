@@ -1,0 +1,311 @@
+"""Run a per-image network over a sweep of perspective views around the horizon, back to the panorama.
+
+A panorama is a poor input for detectors trained on perspective photos (people near the robot are bent,
+and a single pass returns only a few people), so each backend sees pinhole views rendered from it
+(:class:`studio.geometry.ViewRenderer`); its boxes and keypoints are mapped back to panorama pixels with
+the exact view ↔ sphere mapping, and the duplicates that neighbouring views (or the 0/360° seam) produce
+are merged on the sphere:
+
+* two detections from the same view are never merged (the network already told them apart);
+* detections from different views are one person when their seam-aware IoU exceeds ``iou_threshold`` or
+  one box lies mostly inside the other (intersection / smaller area above ``containment``), unless their
+  confident keypoints disagree (mean distance above ``keypoint_distance`` box heights: two people, one
+  behind the other);
+* a detection whose box touches its view's left or right border is a partial view of the person: a
+  whole one from another view wins; two partial ones are united; two partial ones that overlap at all and
+  share most of their rows (``partial_rows``) are one person cut by both views' borders (someone close
+  to the robot, wider than the views' overlap).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from studio.detect.image.base import ImageDetections, ViewDetections
+from studio.detect.image.errors import ImageDetectorError
+from studio.geometry import PerspectiveView, ViewRenderer, horizon_views, merge_pano_boxes, pano_box_iou
+
+__all__ = [
+    "MergeParams",
+    "SweepParams",
+    "ViewSweepDetector",
+    "bundled_model",
+    "check_pano",
+    "load_session",
+    "merge_on_sphere",
+    "views_to_pano",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SweepParams:
+    """A ring of ``count`` pinhole views around the horizon.
+
+    Attributes:
+        count: number of views, evenly spaced in azimuth (the first looks forward).
+        fov_deg: horizontal field of view of each view, degrees (> 360/count so neighbours overlap).
+        width: view width, px (the network input width).
+        height: view height, px (the network input height).
+        pitch_deg: elevation of the optical axes, degrees (negative looks down, towards the feet).
+    """
+
+    count: int = 6
+    fov_deg: float = 90.0
+    width: int = 256
+    height: int = 320
+    pitch_deg: float = 0.0
+
+    def views(self) -> list[PerspectiveView]:
+        return horizon_views(
+            count=self.count,
+            fov=math.radians(self.fov_deg),
+            width=self.width,
+            height=self.height,
+            pitch=math.radians(self.pitch_deg),
+        )
+
+
+@dataclass(frozen=True)
+class MergeParams:
+    """Thresholds of :func:`merge_on_sphere` (see the module docstring)."""
+
+    iou_threshold: float = 0.4
+    containment: float = 0.7
+    keypoint_distance: float = 0.25
+    keypoint_score: float = 0.3
+    border_px: float = 2.0
+    partial_rows: float = 0.6
+
+
+def bundled_model(file_name: str) -> Path:
+    """Path of a model file shipped in ``studio/models``."""
+    path = Path(str(resources.files("studio") / "models" / file_name))
+    if not path.is_file():
+        raise ImageDetectorError(f"bundled model {file_name} is missing from {path.parent} (broken install?)")
+    return path
+
+
+def load_session(path: str | Path, *, threads: int | None = None) -> Any:
+    """An onnxruntime CPU session of ``path``; errors become :class:`ImageDetectorError`."""
+    import onnxruntime as ort
+
+    opts = ort.SessionOptions()
+    if threads is not None:
+        opts.intra_op_num_threads = int(threads)
+        opts.inter_op_num_threads = 1
+    opts.log_severity_level = 3
+    try:
+        return ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # onnxruntime raises its own exception types for unreadable models
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ImageDetectorError(f"cannot load ONNX model {path}: {first}") from None
+
+
+def check_pano(pano: Any) -> tuple[int, int]:
+    """``(W, H)`` of a BGR uint8 panorama ``(H, W, 3)``; ImageDetectorError otherwise."""
+    if not isinstance(pano, np.ndarray) or pano.ndim != 3 or pano.shape[2] != 3 or pano.dtype != np.uint8:
+        raise ImageDetectorError(
+            "expected a BGR uint8 panorama of shape (H, W, 3), got "
+            f"{getattr(pano, 'shape', type(pano).__name__)} {getattr(pano, 'dtype', '')}"
+        )
+    h, w = pano.shape[:2]
+    if w < 8 or h < 4:
+        raise ImageDetectorError(f"panorama too small: {w}×{h} px")
+    return int(w), int(h)
+
+
+def views_to_pano(
+    views: list[PerspectiveView], per_view: list[ViewDetections], pano_w: int, pano_h: int
+) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray, NDArray[np.int64]]:
+    """Map every view's detections to the panorama.
+
+    Returns:
+        boxes ``(N, 4)`` seam-form panorama px, scores ``(N,)``, keypoints ``(N, 17, 3)`` (u wrapped into
+        ``[0, W)``) or None when a view has none, border margin ``(N,)`` (the box's distance to its view's
+        left or right edge, whichever is nearer, px; 0 when it touches one), and the view index ``(N,)``.
+    """
+    boxes, scores, kps, margin, view_idx = [], [], [], [], []
+    has_kp = all(d.keypoints is not None for d in per_view)
+    for i, (view, det) in enumerate(zip(views, per_view, strict=True)):
+        if len(det) == 0:
+            continue
+        b = det.boxes
+        boxes.append(view.box_to_pano(b, pano_w, pano_h))
+        scores.append(det.scores)
+        m = np.minimum(b[:, 0], view.width - b[:, 2])  # left/right only: rows are cut alike in all views
+        margin.append(np.maximum(m, 0.0))
+        view_idx.append(np.full(len(det), i, dtype=np.int64))
+        if has_kp and det.keypoints is not None:
+            k = det.keypoints
+            uv = view.view_to_pano(k[..., :2].reshape(-1, 2), pano_w, pano_h).reshape(len(det), 17, 2)
+            kps.append(np.concatenate([uv, k[..., 2:3]], axis=-1))
+    if not boxes:
+        return (
+            np.zeros((0, 4)),
+            np.zeros(0),
+            np.zeros((0, 17, 3)) if has_kp else None,
+            np.zeros(0),
+            np.zeros(0, dtype=np.int64),
+        )
+    kp_all = np.concatenate(kps) if has_kp else None
+    return (
+        np.concatenate(boxes),
+        np.concatenate(scores),
+        kp_all,
+        np.concatenate(margin),
+        np.concatenate(view_idx),
+    )
+
+
+def _keypoints_disagree(ka: FloatArray, kb: FloatArray, box_h: float, width: int, p: MergeParams) -> bool:
+    both = (ka[:, 2] >= p.keypoint_score) & (kb[:, 2] >= p.keypoint_score)
+    if both.sum() < 3:
+        return False
+    du = np.abs(ka[both, 0] - kb[both, 0])
+    du = np.minimum(du, width - du)
+    dv = ka[both, 1] - kb[both, 1]
+    dist = float(np.mean(np.hypot(du, dv)))
+    return dist > p.keypoint_distance * max(box_h, 1.0)
+
+
+def merge_on_sphere(
+    boxes: FloatArray,
+    scores: FloatArray,
+    keypoints: FloatArray | None,
+    margin: FloatArray,
+    view_idx: NDArray[np.int64],
+    pano_w: int,
+    pano_h: int,
+    *,
+    params: MergeParams | None = None,
+) -> ImageDetections:
+    """Merge detections of one person seen in several views (or across the seam) into one.
+
+    Args:
+        boxes: ``(N, 4)`` panorama px (seam form); scores ``(N,)``; keypoints ``(N, 17, 3)`` or None;
+            margin ``(N,)`` px to the view border; view_idx ``(N,)`` (all as :func:`views_to_pano`).
+        pano_w: panorama width W, px.
+        pano_h: panorama height H, px.
+        params: merge thresholds.
+
+    Returns:
+        The merged detections, by decreasing score. A merged person keeps the highest score of its group,
+        the box of its best whole view (or the union of partial ones) and per keypoint the most
+        confident estimate.
+    """
+    p = params or MergeParams()
+    n = boxes.shape[0]
+    if n == 0:
+        return ImageDetections.empty(pano_w, pano_h, keypoints=keypoints is not None)
+    whole = margin >= p.border_px
+    order = np.lexsort((-scores, ~whole))  # whole views first, then by score
+    iou = pano_box_iou(boxes, boxes, pano_w)
+    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+    inter = iou * (area[:, None] + area[None, :]) / (1.0 + iou)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        contain = np.where(
+            np.minimum(area[:, None], area[None, :]) > 0,
+            inter / np.minimum(area[:, None], area[None, :]),
+            0.0,
+        )
+    v_inter = np.clip(
+        np.minimum(boxes[:, None, 3], boxes[None, :, 3]) - np.maximum(boxes[:, None, 1], boxes[None, :, 1]),
+        0,
+        None,
+    )
+    heights = boxes[:, 3] - boxes[:, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v_ratio = np.where(
+            np.minimum(heights[:, None], heights[None, :]) > 0,
+            v_inter / np.minimum(heights[:, None], heights[None, :]),
+            0.0,
+        )
+
+    def same_person(i: int, j: int) -> bool:
+        if view_idx[i] == view_idx[j]:
+            return False
+        overlap = iou[i, j] > p.iou_threshold or contain[i, j] > p.containment
+        # a person cut by two views' borders: two partial boxes that overlap and span the same rows
+        cut = not whole[i] and not whole[j] and inter[i, j] > 0 and v_ratio[i, j] > p.partial_rows
+        if not (overlap or cut):
+            return False
+        return keypoints is None or not _keypoints_disagree(
+            keypoints[i], keypoints[j], max(heights[i], heights[j]), pano_w, p
+        )
+
+    groups: list[list[int]] = []
+    for i in order:
+        target = -1
+        for g, members in enumerate(groups):
+            if any(view_idx[m] == view_idx[i] for m in members):
+                continue
+            if any(same_person(int(i), m) for m in members):
+                target = g
+                break
+        if target < 0:
+            groups.append([int(i)])
+        else:
+            groups[target].append(int(i))
+
+    out_b = np.zeros((len(groups), 4))
+    out_s = np.zeros(len(groups))
+    out_k = None if keypoints is None else np.zeros((len(groups), 17, 3))
+    for g, members in enumerate(groups):
+        idx = np.asarray(members)
+        lead = members[0]
+        out_s[g] = scores[idx].max()
+        if whole[lead]:
+            out_b[g] = boxes[lead]
+        else:  # only partial views of this person: their union
+            out_b[g] = merge_pano_boxes(boxes[idx], pano_w)
+            out_b[g, 0] = min(out_b[g, 0], pano_w - 1e-6)
+        if out_k is not None and keypoints is not None:
+            best = idx[np.argmax(keypoints[idx, :, 2], axis=0)]  # (17,) member with the best estimate
+            out_k[g] = keypoints[best, np.arange(17)]
+    sort = np.argsort(-out_s, kind="stable")
+    return ImageDetections(out_b[sort], out_s[sort], None if out_k is None else out_k[sort], pano_w, pano_h)
+
+
+class ViewSweepDetector:
+    """Base of the detectors that run a network on perspective views: subclasses give ``detect_view``.
+
+    Args:
+        sweep: the ring of views.
+        merge: merge thresholds.
+        renderer: a shared :class:`ViewRenderer` (its LUT cache); a new one when None.
+    """
+
+    name = "sweep"
+
+    def __init__(
+        self, *, sweep: SweepParams, merge: MergeParams | None = None, renderer: ViewRenderer | None = None
+    ) -> None:
+        self.sweep = sweep
+        self.merge = merge or MergeParams()
+        self.views = sweep.views()
+        self.renderer = renderer or ViewRenderer()
+
+    def detect_view(self, image: NDArray[np.uint8]) -> ViewDetections:
+        """People in one BGR uint8 view ``(h, w, 3)`` (pre-process → infer → post-process)."""
+        raise NotImplementedError
+
+    def render_views(self, pano: NDArray[np.uint8]) -> list[NDArray[np.uint8]]:
+        """The sweep's views of ``pano`` (BGR uint8), in :attr:`views` order."""
+        check_pano(pano)
+        return self.renderer.render_many(pano, self.views)
+
+    def detect(self, pano: NDArray[np.uint8]) -> ImageDetections:
+        """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``."""
+        w, h = check_pano(pano)
+        per_view = [self.detect_view(img) for img in self.render_views(pano)]
+        b, s, k, m, vi = views_to_pano(self.views, per_view, w, h)
+        return merge_on_sphere(b, s, k, m, vi, w, h, params=self.merge)

@@ -1,0 +1,145 @@
+"""View sweep: view ↔ panorama mapping of detections and merging duplicates on the sphere (no network)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from imgdet_synth import OracleSweep, angles_to_uv, person_keypoints, person_outline
+
+from studio.detect.image.base import ViewDetections
+from studio.detect.image.sweep import MergeParams, SweepParams, merge_on_sphere, views_to_pano
+from studio.geometry import PerspectiveView, pano_box_iou
+
+W, H = 1280, 640
+
+
+def _gt_box(az: float, dist: float) -> np.ndarray:
+    a, e = person_outline(az, dist)
+    uv = angles_to_uv(a, e, W, H)
+    u = uv[:, 0]
+    if u.max() - u.min() > W / 2:  # across the seam
+        u = np.where(u < W / 2, u + W, u)
+    return np.array([u.min(), uv[:, 1].min(), u.max(), uv[:, 1].max()])
+
+
+def test_views_to_pano_centre_and_seam():
+    views = [
+        PerspectiveView(0.0, 0.0, math.radians(90), 256, 256),
+        PerspectiveView(math.pi, 0.0, math.radians(90), 256, 256),
+    ]
+    dets = [ViewDetections([[118, 100, 138, 156]], [0.5]), ViewDetections([[118, 100, 138, 156]], [0.7])]
+    b, s, k, m, vi = views_to_pano(views, dets, W, H)
+    assert k is None
+    assert s.tolist() == [0.5, 0.7]
+    assert vi.tolist() == [0, 1]
+    assert b[0, 0] < W / 2 < b[0, 2]  # forward = panorama centre
+    assert 0 <= b[1, 0] < W < b[1, 2]  # backward = across the seam, u2 > W
+    assert m.tolist() == [118.0, 118.0]
+
+
+def test_views_to_pano_keypoints_wrapped():
+    view = PerspectiveView(math.pi, 0.0, math.radians(90), 256, 256)
+    kp = np.zeros((1, 17, 3))
+    kp[0, :, 0] = np.linspace(100, 156, 17)
+    kp[0, :, 1] = 128
+    kp[0, :, 2] = 0.8
+    _, _, k, _, _ = views_to_pano([view], [ViewDetections([[100, 100, 156, 156]], [0.5], kp)], W, H)
+    assert k is not None
+    assert np.all((k[0, :, 0] >= 0) & (k[0, :, 0] < W))
+    assert np.all(np.abs(k[0, :, 1] - H / 2) < 1.0)
+    assert np.allclose(k[0, :, 2], 0.8)
+
+
+# (people as (azimuth rad, distance m)) — each must come out as exactly one detection
+CASES = {
+    "view centre": [(0.0, 3.0)],
+    "view border (30° between 6 views)": [(math.radians(30), 2.0)],
+    "seam": [(math.pi, 2.5)],
+    "seam, close": [(math.radians(179), 0.9)],
+    "border, close (partial in both views)": [(math.radians(30), 0.7)],
+    "two side by side": [(math.radians(-40), 2.0), (math.radians(-52), 2.0)],
+    "ring of six": [(math.radians(a), 1.5 + (a % 7) / 3) for a in range(-170, 180, 60)],
+}
+
+
+@pytest.mark.parametrize("people", CASES.values(), ids=CASES.keys())
+def test_oracle_sweep_one_detection_per_person(people):
+    det = OracleSweep(people, W, H)  # the default sweep
+    out = det.detect(np.zeros((H, W, 3), np.uint8))
+    assert len(out) == len(people)
+    assert out.keypoints is not None
+    gts = np.array([_gt_box(az, d) for az, d in people])
+    iou = pano_box_iou(out.boxes, gts, W)
+    # every person matched by one box; the box covers what the views saw of it (views clip near feet/head)
+    assert np.all(iou.max(axis=0) > 0.6), iou
+    assert len(set(iou.argmax(axis=0).tolist())) == len(people)
+
+
+def test_same_view_never_merged_and_keypoints_split_people():
+    # person behind person, same azimuth: a single view reports both -> two detections
+    boxes = np.array([[100.0, 100, 160, 300], [105.0, 120, 155, 260]])
+    kp_a = np.zeros((17, 3))
+    kp_a[:, 0], kp_a[:, 1], kp_a[:, 2] = 130, np.linspace(100, 300, 17), 0.9
+    kp_b = kp_a.copy()
+    kp_b[:, 1] = np.linspace(120, 260, 17)
+    out = merge_on_sphere(
+        boxes, np.array([0.9, 0.8]), np.stack([kp_a, kp_b]), np.array([10.0, 10.0]), np.array([0, 0]), W, H
+    )
+    assert len(out) == 2
+    # the same boxes from different views: keypoints agree -> merged; disagree -> kept apart
+    kp_far = kp_a.copy()
+    kp_far[:, 0] += 80
+    same = merge_on_sphere(
+        boxes, np.array([0.9, 0.8]), np.stack([kp_a, kp_a]), np.array([10.0, 10.0]), np.array([0, 1]), W, H
+    )
+    apart = merge_on_sphere(
+        boxes, np.array([0.9, 0.8]), np.stack([kp_a, kp_far]), np.array([10.0, 10.0]), np.array([0, 1]), W, H
+    )
+    assert len(same) == 1
+    assert len(apart) == 2
+
+
+def test_merge_prefers_whole_view_and_unites_partials():
+    whole = [1000.0, 200, 1100, 400]
+    part = [1050.0, 200, 1100, 400]
+    out = merge_on_sphere(
+        np.array([part, whole]), np.array([0.9, 0.5]), None, np.array([0.0, 20.0]), np.array([0, 1]), W, H
+    )
+    assert len(out) == 1
+    assert out.boxes[0].tolist() == whole
+    assert out.scores[0] == 0.9
+    # two partial halves across the seam -> their union, in seam form
+    left, right = [1250.0, 200, 1290, 400], [0.0, 210, 40, 390]
+    out = merge_on_sphere(
+        np.array([left, right]),
+        np.array([0.6, 0.7]),
+        None,
+        np.array([0.0, 0.0]),
+        np.array([0, 1]),
+        W,
+        H,
+        params=MergeParams(containment=0.0),
+    )
+    assert len(out) == 1
+    assert np.allclose(out.boxes[0], [1250, 200, 1320, 400])
+
+
+def test_empty_sweep():
+    det = OracleSweep([], W, H)
+    out = det.detect(np.zeros((H, W, 3), np.uint8))
+    assert len(out) == 0
+    assert out.width == W
+    assert out.height == H
+
+
+def test_sweep_params_views():
+    vs = SweepParams(count=4, fov_deg=100, width=64, height=96, pitch_deg=-5).views()
+    assert len(vs) == 4
+    assert vs[0].yaw == 0.0
+    assert vs[0].width == 64
+    assert vs[0].height == 96
+    assert math.isclose(vs[1].yaw, math.pi / 2)
+    assert math.isclose(vs[0].pitch, math.radians(-5))
+    _ = person_keypoints(0.0, 1.0)
