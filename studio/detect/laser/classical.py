@@ -1,0 +1,287 @@
+"""Classical 2D-laser people detector: segments → leg likelihood → leg pairs, single legs and blobs.
+
+1. :func:`~studio.detect.laser.segment.segment_scan` splits the scan over its valid returns with a
+   range-adaptive jump distance (missing beams, common on dark trousers, never split a segment).
+2. Shape features per segment (width, extent, line / circle fit, bulge toward the sensor, occlusion by
+   the neighbours, coverage of valid returns) go through a logistic model on a hinge basis (a
+   generalised additive model) whose coefficients were fitted on the labelled scans of ``leg_tracker``
+   (``bench/laser_sweep.py`` reproduces them); no weights are downloaded.
+3. Legs 0.1–0.6 m apart pair into one person at their midpoint; wide person-like segments are one
+   person (legs together, skirts, coats); unpaired legs are persons with a lower score.
+
+Several scanners: :meth:`ClassicalLaserDetector.detect_scans` detects per scan (each in the common frame
+with its sensor origin) and merges detections closer than ``merge_radius``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from studio.detect.laser.base import KIND_BLOB, KIND_LEG, KIND_PAIR, LaserDetections, merge_detections
+from studio.detect.laser.errors import LaserDetectorError
+from studio.detect.laser.segment import FEATURE_NAMES, SegmentParams, segment_features, segment_scan
+
+__all__ = ["LEG_MODEL", "ClassicalLaserDetector", "LegModel", "leg_basis"]
+
+FloatArray = NDArray[np.float64]
+
+# feature columns of segment_features used by the basis, and the hinge knots of each (metres unless noted)
+_BASIS: tuple[tuple[int, tuple[float, ...]], ...] = (
+    (1, (0.05, 0.1, 0.15, 0.2, 0.3, 0.45)),  # width
+    (10, (0.03, 0.06, 0.1, 0.15, 0.25)),  # extent
+    (3, (0.005, 0.01, 0.02, 0.04)),  # line residual
+    (4, (0.05, 0.08, 0.12, 0.2, 0.4)),  # circle radius (clipped at 0.5)
+    (5, (0.003, 0.01, 0.02, 0.04)),  # circle residual
+    (6, (-0.02, 0.0, 0.01, 0.02, 0.04)),  # bulge
+    (7, (-0.3, 0.0, 0.1, 0.3, 0.6)),  # occlusion min
+    (8, (-0.3, 0.0, 0.3, 0.9)),  # occlusion max
+    (9, (0.8, 0.9, 0.95)),  # coverage (fraction)
+    (11, (1.1, 1.3, 1.6, 2.0, 3.0)),  # jaggedness (ratio)
+    (12, (0.3, 0.6, 0.8, 0.95)),  # incidence (|cos|)
+    (13, (0.1, 0.2, 0.4, 0.8)),  # turning, rad
+    (14, (-0.2, 0.0, 0.1, 0.2, 0.4)),  # signed turning, rad
+)
+
+
+def leg_basis(features: FloatArray) -> FloatArray:
+    """Hinge basis of segment features: per feature ``v`` and ``max(v − knot, 0)`` for each knot.
+
+    Args:
+        features: ``(S, F)`` from :func:`~studio.detect.laser.segment.segment_features`.
+
+    Returns:
+        ``(S, B)`` float64 basis.
+    """
+    f = np.asarray(features, dtype=np.float64).reshape(-1, len(FEATURE_NAMES))
+    cols = []
+    for col, knots in _BASIS:
+        v = f[:, col]
+        if col == 4:
+            v = np.minimum(v, 0.5)
+        cols.append(v)
+        cols.extend(np.maximum(v - k, 0.0) for k in knots)
+    return np.column_stack(cols) if f.shape[0] else np.zeros((0, sum(1 + len(k) for _, k in _BASIS)))
+
+
+@dataclass(frozen=True)
+class LegModel:
+    """Logistic leg likelihood on the standardised hinge basis ``x``.
+
+    ``p = sigmoid(((x − mean) / std) · coef + bias)``.
+    """
+
+    mean: tuple[float, ...]
+    std: tuple[float, ...]
+    coef: tuple[float, ...]
+    bias: float
+
+    def __call__(self, features: FloatArray) -> FloatArray:
+        """Leg probability ``(S,)`` of segment features ``(S, F)``."""
+        x = leg_basis(features)
+        if x.shape[0] == 0:
+            return np.zeros(0)
+        z = (x - np.asarray(self.mean)) / np.asarray(self.std) @ np.asarray(self.coef) + self.bias
+        return 1.0 / (1.0 + np.exp(-np.clip(z, -50.0, 50.0)))
+
+
+# fitted by `bench/laser_sweep.py` on legs_labelled (positives) + negative_2 and the non-person
+# segments outside the labelled wedge (negatives), class-balanced, L2 1e-3
+# fmt: off
+LEG_MODEL = LegModel(
+    mean=(
+        0.383127, 0.334759, 0.293483, 0.259814, 0.232914, 0.189453, 0.140925, 0.210438, 0.181527,
+        0.157193, 0.132749, 0.110273, 0.078208, 0.013959, 0.009927, 0.00749, 0.005091, 0.002987,
+        0.259524, 0.212099, 0.187719, 0.159634, 0.113401, 0.031121, 0.016995, 0.014647, 0.010824,
+        0.007722, 0.00448, 0.002986, 0.027242, 0.00975, 0.005742, 0.003876, 0.002343, -0.076983,
+        0.445206, 0.295254, 0.252246, 0.179755, 0.094412, 0.580381, 0.917021, 0.65447, 0.424549,
+        0.056988, 0.987173, 0.189063, 0.092411, 0.045608, 1.176794, 0.120855, 0.075471, 0.051966,
+        0.036932, 0.015407, 0.364569, 0.158862, 0.051726, 0.015206, 0.001707, 0.373367, 0.28133,
+        0.199582, 0.09274, 0.022814, 0.079974, 0.29083, 0.109278, 0.072113, 0.051532, 0.029064,
+    ),
+    std=(
+        0.449599, 0.448338, 0.442257, 0.431998, 0.418674, 0.389328, 0.344267, 0.260393, 0.259601,
+        0.255928, 0.247075, 0.233245, 0.204572, 0.022055, 0.021552, 0.020519, 0.01813, 0.013755,
+        0.185614, 0.18247, 0.176256, 0.164178, 0.133753, 0.045464, 0.028525, 0.028166, 0.026731,
+        0.024285, 0.019822, 0.038308, 0.023912, 0.022211, 0.020156, 0.01817, 0.014835, 0.756752,
+        0.529024, 0.413879, 0.374348, 0.292931, 0.167421, 0.572264, 0.48852, 0.425845, 0.329025,
+        0.049395, 0.049741, 0.038929, 0.024921, 0.013769, 0.42898, 0.414446, 0.378058, 0.330102,
+        0.274169, 0.162769, 0.303984, 0.222196, 0.110747, 0.045452, 0.008205, 0.28527, 0.276208,
+        0.260301, 0.207705, 0.107829, 0.271564, 0.246499, 0.233808, 0.209181, 0.184645, 0.142501,
+    ),
+    coef=(
+        -0.163754, -0.458354, -0.980022, -0.518827, -0.201192, -0.429928, -0.440075, 0.266954, -0.045186,
+        -0.222932, 0.224686, 0.065677, -0.119365, 0.571092, 0.566464, 0.232532, -0.509442, -0.765403,
+        0.580071, -0.291865, -0.87387, -1.329076, 0.166783, 0.583544, -0.689924, -1.007433, 0.759997,
+        0.754733, -0.780889, 0.615321, 0.308316, 1.069611, -0.706245, -1.043037, -0.464293, 0.611971,
+        -0.276177, -0.247995, -0.417528, -1.36979, 1.219097, 0.144843, -0.451902, -0.221793, 0.003337,
+        1.635771, 0.512694, -0.568708, -0.26273, -0.06021, 1.562808, 0.077373, -0.72529, -1.443797,
+        -0.590822, -0.010301, -0.109004, -0.134831, 0.024014, -0.176322, -0.18008, -0.198226, 0.067371,
+        -0.113337, -0.585837, 0.048322, 0.704933, 0.12829, -1.197887, -0.958669, 0.604062, 0.132078,
+    ),
+    bias=-3.567348,
+)
+# fmt: on
+
+
+@dataclass(frozen=True)
+class ClassicalLaserDetector:
+    """Hand-built leg detector (see the module docstring). Implements ``LaserDetector``.
+
+    Attributes:
+        segment: segmentation options.
+        leg_min_score: segments below this leg likelihood are not legs.
+        max_leg_width: wider segments are blob candidates, metres.
+        max_blob_width: wider segments are never people, metres.
+        pair_min, pair_max: distance range between the centroids of two legs of one person, metres.
+        single_leg_factor: score of an unpaired leg = its likelihood × this.
+        blob_factor: score of a blob person = its likelihood × this.
+        merge_radius: detections of several scans closer than this are one person, metres.
+        model: the leg likelihood.
+    """
+
+    segment: SegmentParams = field(default_factory=SegmentParams)
+    leg_min_score: float = 0.3
+    max_leg_width: float = 0.25
+    max_blob_width: float = 0.8
+    pair_min: float = 0.1
+    pair_max: float = 0.6
+    single_leg_factor: float = 0.7
+    blob_factor: float = 1.0
+    merge_radius: float = 0.3
+    model: LegModel = LEG_MODEL
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.pair_min < self.pair_max:
+            raise LaserDetectorError(f"need 0 <= pair_min < pair_max, got {self.pair_min}, {self.pair_max}")
+        if not self.model.coef:
+            raise LaserDetectorError("the classical laser detector has no leg model coefficients")
+
+    # -- stages ---------------------------------------------------------------------------------------
+    def segments(
+        self, points: FloatArray, *, valid: NDArray[np.bool_] | None = None, origin: ArrayLike = (0.0, 0.0)
+    ) -> tuple[list[NDArray[np.int64]], FloatArray]:
+        """Segments of one scan and their features ``(S, F)``."""
+        pts = _check_points(points)
+        segs = segment_scan(pts, valid, origin=origin, params=self.segment)
+        return segs, segment_features(pts, segs, valid, origin=origin)
+
+    def legs(
+        self, points: FloatArray, *, valid: NDArray[np.bool_] | None = None, origin: ArrayLike = (0.0, 0.0)
+    ) -> LaserDetections:
+        """Every segment as a leg candidate (before pairing): centroid, leg likelihood, width / 2.
+
+        ``kind`` is :data:`KIND_LEG` for leg-sized segments and :data:`KIND_BLOB` for wider ones.
+        """
+        pts = _check_points(points)
+        segs, feats = self.segments(pts, valid=valid, origin=origin)
+        if not segs:
+            return LaserDetections.empty(with_segments=True)
+        xy = np.array([pts[s].mean(0) for s in segs])
+        p = self.model(feats)
+        width = feats[:, 1]
+        kind = np.where(width > self.max_leg_width, KIND_BLOB, KIND_LEG)
+        return LaserDetections(xy, p, kind, np.maximum(width / 2.0, 0.05), tuple(segs))
+
+    def people(self, legs: LaserDetections) -> LaserDetections:
+        """People from leg candidates: greedy leg pairing, then unpaired legs and blobs.
+
+        Args:
+            legs: leg candidates as :meth:`legs` returns them (``segments`` optional).
+
+        Returns:
+            People; a pair's ``segments`` is the union of both legs' (None when ``legs`` has none).
+        """
+        has_segs = legs.segments is not None
+        segs_in = (
+            legs.segments if legs.segments is not None else tuple(np.zeros(0, np.int64) for _ in legs.xy)
+        )
+        n = len(legs)
+        width = 2.0 * legs.radius
+        is_leg = (legs.kind == KIND_LEG) & (legs.scores >= self.leg_min_score)
+        is_blob = (
+            (legs.kind == KIND_BLOB) & (legs.scores >= self.leg_min_score) & (width <= self.max_blob_width)
+        )
+        li = np.flatnonzero(is_leg)
+        xy, sc, kd, rad, seg = [], [], [], [], []
+        used = np.zeros(n, dtype=bool)
+        if li.size >= 2:
+            d = np.hypot(*(legs.xy[li, None, :] - legs.xy[None, li, :]).transpose(2, 0, 1))
+            a, b = np.triu_indices(li.size, 1)
+            ok = (d[a, b] >= self.pair_min) & (d[a, b] <= self.pair_max)
+            a, b = li[a[ok]], li[b[ok]]
+            pa, pb = legs.scores[a], legs.scores[b]
+            pair_score = 1.0 - (1.0 - pa) * (1.0 - pb)
+            for k in np.argsort(-pair_score, kind="stable"):
+                i, j = a[k], b[k]
+                if used[i] or used[j]:
+                    continue
+                used[i] = used[j] = True
+                c = (legs.xy[i] + legs.xy[j]) / 2.0
+                xy.append(c)
+                sc.append(pair_score[k])
+                kd.append(KIND_PAIR)
+                rad.append(np.hypot(*(legs.xy[i] - c)) + max(legs.radius[i], legs.radius[j]))
+                seg.append(np.concatenate([segs_in[i], segs_in[j]]))
+        for i in np.flatnonzero((is_leg & ~used) | is_blob):
+            factor = self.single_leg_factor if legs.kind[i] == KIND_LEG else self.blob_factor
+            xy.append(legs.xy[i])
+            sc.append(legs.scores[i] * factor)
+            kd.append(int(legs.kind[i]))
+            rad.append(max(float(legs.radius[i]), 0.15))
+            seg.append(segs_in[i])
+        if not xy:
+            return LaserDetections.empty(with_segments=has_segs)
+        segments = tuple(seg) if has_segs else None
+        return LaserDetections(np.array(xy), np.clip(sc, 0.0, 1.0), np.array(kd), np.array(rad), segments)
+
+    # -- LaserDetector ----------------------------------------------------------------------------------
+    def detect(
+        self,
+        points: FloatArray,
+        *,
+        valid: NDArray[np.bool_] | None = None,
+        origin: ArrayLike = (0.0, 0.0),
+    ) -> LaserDetections:
+        """People in one scan.
+
+        Args:
+            points: ``(M, 2)`` float64, beams in angle order, metres; invalid ones NaN or masked.
+            valid: ``(M,)`` bool, optional mask of returns.
+            origin: ``(2,)`` the sensor's position in the frame of ``points`` (ranges are measured from it).
+
+        Returns:
+            People in the frame of ``points``; ``segments`` index ``points``.
+        """
+        return self.people(self.legs(points, valid=valid, origin=origin))
+
+    def detect_scans(
+        self,
+        scans: Sequence[tuple[FloatArray, NDArray[np.bool_] | None, ArrayLike]],
+    ) -> LaserDetections:
+        """People in several simultaneous scans given in one common frame (e.g. base_link).
+
+        Args:
+            scans: per scanner ``(points (M_i, 2), valid (M_i,) or None, sensor origin (2,))``, points in
+                beam order, already transformed to the common frame.
+
+        Returns:
+            Merged people; ``segments`` index the concatenation of all scans' points, in order.
+        """
+        parts, offsets, off = [], [], 0
+        for pts, valid, origin in scans:
+            p = _check_points(pts)
+            parts.append(self.detect(p, valid=valid, origin=origin))
+            offsets.append(off)
+            off += p.shape[0]
+        return merge_detections(parts, radius=self.merge_radius, offsets=offsets)
+
+
+def _check_points(points: FloatArray) -> FloatArray:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise LaserDetectorError(f"scan points must have shape (M, 2), got {pts.shape}")
+    return pts

@@ -1,0 +1,124 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from laser_synth import cast
+
+from studio.detect.laser import KIND_BLOB, KIND_LEG, KIND_PAIR, LaserDetections, LaserDetectorError
+from studio.detect.laser.classical import ClassicalLaserDetector, leg_basis
+from studio.detect.laser.segment import FEATURE_NAMES
+
+
+def _legs(xy, scores, kinds=None, width=0.12):
+    n = len(xy)
+    kinds = [KIND_LEG] * n if kinds is None else kinds
+    return LaserDetections(
+        np.array(xy, float),
+        np.array(scores, float),
+        np.array(kinds),
+        np.full(n, width / 2.0),
+        tuple(np.array([i]) for i in range(n)),
+    )
+
+
+@pytest.mark.parametrize(
+    ("xy", "scores", "kinds", "expected"),
+    [
+        # two legs 0.3 m apart → one pair at the midpoint
+        ([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.7], None, [(KIND_PAIR, 2.0, 0.0)]),
+        # too far apart → two single legs
+        ([[2.0, 0.5], [2.0, -0.5]], [0.8, 0.7], None, [(KIND_LEG, 2.0, 0.5), (KIND_LEG, 2.0, -0.5)]),
+        # too close → two single legs
+        ([[2.0, 0.02], [2.0, -0.02]], [0.8, 0.7], None, [(KIND_LEG, 2.0, 0.02), (KIND_LEG, 2.0, -0.02)]),
+        # three legs: the best pair wins, the third stays single
+        (
+            [[2.0, 0.0], [2.0, 0.25], [2.0, 0.7]],
+            [0.9, 0.9, 0.5],
+            None,
+            [(KIND_PAIR, 2.0, 0.125), (KIND_LEG, 2.0, 0.7)],
+        ),
+        # a leg below the leg threshold is dropped
+        ([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.1], None, [(KIND_LEG, 2.0, 0.15)]),
+        # a blob is a person on its own and is never paired
+        (
+            [[3.0, 0.0], [3.0, 0.3]],
+            [0.8, 0.8],
+            [KIND_BLOB, KIND_LEG],
+            [(KIND_LEG, 3.0, 0.3), (KIND_BLOB, 3.0, 0.0)],
+        ),
+        ([], [], None, []),
+    ],
+)
+def test_pairing_table(xy, scores, kinds, expected):
+    det = ClassicalLaserDetector()
+    legs = _legs(xy, scores, kinds) if xy else LaserDetections.empty(with_segments=True)
+    people = det.people(legs)
+    got = sorted(
+        (int(k), round(float(x), 3), round(float(y), 3))
+        for k, (x, y) in zip(people.kind, people.xy, strict=True)
+    )
+    assert got == sorted((k, round(x, 3), round(y, 3)) for k, x, y in expected)
+    assert np.all((people.scores >= 0) & (people.scores <= 1))
+
+
+def test_people_without_segments():
+    legs = _legs([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.7])
+    people = ClassicalLaserDetector().people(LaserDetections(legs.xy, legs.scores, legs.kind, legs.radius))
+    assert len(people) == 1
+    assert people.segments is None
+
+
+def test_pair_scores_above_single_leg():
+    det = ClassicalLaserDetector()
+    pair = det.people(_legs([[2.0, 0.15], [2.0, -0.15]], [0.7, 0.7]))
+    single = det.people(_legs([[2.0, 0.15]], [0.7]))
+    assert pair.scores[0] > single.scores[0]
+
+
+def test_two_legs_and_a_wall_give_one_person():
+    pts, valid = cast(
+        circles=[(2.0, 0.15, 0.06), (2.05, -0.15, 0.06)],
+        walls=[(4.0, -3.0, 4.0, 3.0)],
+    )
+    det = ClassicalLaserDetector()
+    people = det.detect(pts, valid=valid).above(0.5)
+    assert len(people) == 1
+    assert people.kind[0] == KIND_PAIR
+    np.testing.assert_allclose(people.xy[0], [2.0, 0.0], atol=0.08)
+    legs = det.legs(pts, valid=valid)
+    wall = np.flatnonzero(legs.xy[:, 0] > 3.5)
+    assert legs.scores[wall].max() < 0.5
+
+
+def test_missing_beams_on_a_leg_keep_one_segment():
+    pts, valid = cast(circles=[(2.0, 0.15, 0.06), (2.0, -0.15, 0.06)], walls=[(4.0, -3.0, 4.0, 3.0)])
+    on_legs = np.flatnonzero(valid & (np.hypot(*np.nan_to_num(pts).T) < 2.5))
+    valid = valid.copy()
+    valid[on_legs[::2]] = False  # every other return on the legs is missing
+    legs = ClassicalLaserDetector().legs(pts, valid=valid)
+    assert (np.hypot(*legs.xy.T) < 2.5).sum() == 2
+
+
+def test_detect_scans_merges_overlapping_scanners():
+    circles = [(2.0, 0.15, 0.06), (2.0, -0.15, 0.06)]
+    walls = [(4.0, -3.0, 4.0, 3.0)]
+    a, va = cast(circles=circles, walls=walls, origin=(0.0, 0.0))
+    # second laser 0.5 m to the left, facing forward: its points moved into the common frame
+    b, vb = cast(circles=circles, walls=walls, origin=(0.0, 0.5))
+    b = b + np.array([0.0, 0.5])
+    det = ClassicalLaserDetector()
+    merged = det.detect_scans([(a, va, (0.0, 0.0)), (b, vb, (0.0, 0.5))]).above(0.5)
+    assert len(merged) == 1
+    np.testing.assert_allclose(merged.xy[0], [2.0, 0.0], atol=0.08)
+    assert merged.segments is not None
+    assert merged.segments[0].max() >= len(a)
+
+
+def test_bad_input():
+    det = ClassicalLaserDetector()
+    with pytest.raises(LaserDetectorError):
+        det.detect(np.zeros((5, 3)))
+    with pytest.raises(LaserDetectorError):
+        ClassicalLaserDetector(pair_min=0.7, pair_max=0.6)
+    assert len(det.detect(np.full((10, 2), np.nan))) == 0
+    assert leg_basis(np.zeros((0, len(FEATURE_NAMES)))).shape[0] == 0
