@@ -15,7 +15,18 @@ import numpy as np
 
 from studio.geometry.se import Pose2
 
-__all__ = ["SOURCES", "LabelFrame", "LabelPerson", "LabelSet"]
+__all__ = ["SOURCES", "LabelFrame", "LabelPerson", "LabelSet", "as_box"]
+
+
+def as_box(values: Any) -> tuple[float, float, float, float] | None:
+    """``(u1, v1, u2, v2)`` as floats, or None when absent or not finite (e.g. a NaN row)."""
+    if values is None:
+        return None
+    b = np.asarray(values, dtype=np.float64).reshape(-1)
+    if b.shape != (4,) or not np.all(np.isfinite(b)):
+        return None
+    return (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
+
 
 SOURCES = ("fused", "laser", "image", "manual", "gt")
 

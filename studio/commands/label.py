@@ -1,0 +1,115 @@
+"""``studio label RECORDING --rig RIG --out RUN``."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from studio.atomic import atomic_dir
+from studio.errors import StudioError
+
+__all__ = ["run", "run_label"]
+
+
+def run_label(
+    recording: Path,
+    rig_path: Path,
+    out: Path,
+    *,
+    options: Any,
+    write_rrd: bool = True,
+    ground_truth: Path | None = None,
+    quiet: bool = False,
+) -> dict[str, Any]:
+    """Label ``recording`` into the run directory ``out`` (written atomically). Returns run.json's content."""
+    from tqdm import tqdm
+
+    from studio.io import load_rig
+    from studio.pipeline import label_recording, observations_to_frames
+    from studio.pipeline.outputs import write_label_files, write_run_json
+
+    if not recording.exists():
+        raise StudioError(f"{recording}: no such recording")
+    rig = load_rig(rig_path)
+    bar = tqdm(total=None, unit="frame", desc="labeling", disable=quiet, leave=False, mininterval=1.0)
+
+    def progress(done: int, total: int) -> None:
+        if bar.total != total:
+            bar.total = total
+        bar.update(done - bar.n)
+
+    hooks: list[Any] = []
+    t0 = time.perf_counter()
+    with atomic_dir(out) as tmp:
+        exporter = None
+        if options.export_frames:
+            from studio.pipeline.export import FrameExporter
+
+            exporter = FrameExporter(tmp / "frames")
+            hooks.append(exporter)
+        logger = None
+        if write_rrd:
+            try:
+                from studio.viz.log import RunLogger
+            except ModuleNotFoundError as exc:
+                if not (exc.name or "").startswith("studio.viz"):
+                    raise
+            else:
+                logger = RunLogger(tmp / "recording.rrd", rig=rig)
+                hooks.append(logger)
+
+        def on_frame(frame: Any, pf: Any) -> None:
+            for h in hooks:
+                h.on_frame(frame, pf)
+
+        try:
+            result = label_recording(recording, rig, options=options, progress=progress, on_frame=on_frame)
+        finally:
+            bar.close()
+        detections = observations_to_frames(result.detections)
+        write_label_files(tmp, result.labels, detections, image_size=result.image_size)
+        if logger is not None:
+            t_viz = time.perf_counter()
+            logger.finish(result, ground_truth=ground_truth)
+            result.timings_s["rerun_logging"] = logger.seconds + (time.perf_counter() - t_viz)
+        if exporter is not None:
+            exporter.finish(tmp, result, options=options, recording=recording, rig=rig)
+        info = {
+            "recording": str(recording),
+            "rig": str(rig_path),
+            "options": options.as_dict(),
+            "image_detector": options.image_detector or ("movenet" if result.camera is not None else None),
+            "image_size": result.image_size,
+            "timings_s": {k: round(v, 3) for k, v in result.timings_s.items()},
+            "wall_s": round(time.perf_counter() - t0, 3),
+            "counts": result.counts,
+            "notes": result.notes,
+            "rrd": "recording.rrd" if logger is not None else None,
+        }
+        write_run_json(tmp, info)
+    return info
+
+
+def run(args: argparse.Namespace) -> int:
+    from studio.pipeline import LabelOptions
+
+    options = LabelOptions(
+        method=args.method,
+        sources=args.sources,
+        image_detector=args.image_detector,
+        laser_detector=args.laser_detector,
+        export_frames=args.export_frames,
+    )
+    info = run_label(
+        Path(args.recording), Path(args.rig), Path(args.out), options=options, write_rrd=not args.no_rrd
+    )
+    c = info["counts"]
+    print(
+        f"labeled {c['frames']} frames, {c['tracks']} tracks, {c['observations']} observations "
+        f"in {info['wall_s']:.1f} s → {args.out}"
+    )
+    for note in info["notes"]:
+        print(f"note: {note}")
+    return 0

@@ -1,0 +1,15 @@
+"""Fusion of image boxes and laser people into positions with covariance and provenance."""
+
+from studio.fuse.base import HOW, SOURCES, FusionConfig, PersonObservations
+from studio.fuse.fusion import BoxRange, box_ranges, fuse_frame, points_columns
+
+__all__ = [
+    "HOW",
+    "SOURCES",
+    "BoxRange",
+    "FusionConfig",
+    "PersonObservations",
+    "box_ranges",
+    "fuse_frame",
+    "points_columns",
+]

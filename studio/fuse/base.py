@@ -1,0 +1,142 @@
+"""Contract of fusion: people as positions with covariance and provenance, in the robot base frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["HOW", "SOURCES", "FusionConfig", "PersonObservations"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+SOURCES = ("fused", "laser", "image")
+"""``fused``: a person box confirmed by laser; ``laser``: laser only; ``image``: image only."""
+
+HOW = ("laser-detection", "scan-cluster", "foot-row", "torso-size", "laser-only")
+"""How a position was measured: a laser people detection inside the box; the scan points inside the box
+closest to the robot; the box's foot row on the ground plane; the apparent torso length; a laser detection
+that no box confirmed."""
+
+
+@dataclass(frozen=True)
+class FusionConfig:
+    """Association and uncertainty parameters (metres, radians, pixels).
+
+    Attributes:
+        foot_kpt_min_score: ankle keypoints at or above this score give the foot row.
+        ankle_height: height of the ankle keypoint above the floor, m.
+        foot_sigma_px: 1-σ of the foot row, px at 1920 px width (scaled with the panorama width).
+        bearing_sigma_frac: 1-σ of the bearing as a fraction of the box width.
+        torso_length: shoulder-to-hip length used for the size cue, m.
+        torso_rel_sigma: relative 1-σ of the size-cue range.
+        gate_sigma: association gate on the range difference, in standard deviations.
+        gate_range_min: the range gate is never narrower than this, m.
+        box_margin_frac: a laser detection may lie this fraction of the box width outside the box.
+        cluster_core_frac: the scan-cluster fallback looks at this central fraction of the box width.
+        cluster_gap: scan points closer than this in range belong to one cluster, m.
+        cluster_min_points: smallest scan cluster that counts as a person.
+        leg_radius: distance from a leg's visible surface to its centre, m.
+        laser_sigma: 1-σ of a laser people detection, m.
+        cluster_sigma: 1-σ of a scan-cluster position, m.
+        max_range: ignore people farther than this from the camera, m.
+        floor_z: height of the floor in the base frame, m.
+    """
+
+    foot_kpt_min_score: float = 0.3
+    ankle_height: float = 0.08
+    foot_sigma_px: float = 4.0
+    bearing_sigma_frac: float = 0.15
+    torso_length: float = 0.5
+    torso_rel_sigma: float = 0.3
+    gate_sigma: float = 3.0
+    gate_range_min: float = 0.6
+    box_margin_frac: float = 0.15
+    cluster_core_frac: float = 0.6
+    cluster_gap: float = 0.3
+    cluster_min_points: int = 3
+    leg_radius: float = 0.06
+    laser_sigma: float = 0.06
+    cluster_sigma: float = 0.10
+    max_range: float = 12.0
+    floor_z: float = 0.0
+
+
+@dataclass(frozen=True)
+class PersonObservations:
+    """People measured in one frame, N of them, positions in the base frame.
+
+    Attributes:
+        xy: ``(N, 2)`` metres.
+        cov: ``(N, 2, 2)`` m², position covariance.
+        score: ``(N,)`` in [0, 1].
+        source: N strings of :data:`SOURCES`.
+        how: N strings of :data:`HOW`.
+        box: ``(N, 4)`` panorama box ``u1, v1, u2, v2`` in px (NaN rows when no box).
+        box_index: ``(N,)`` index of the image detection, -1 when none.
+        laser_index: ``(N,)`` index of the laser detection, -1 when none.
+    """
+
+    xy: FloatArray
+    cov: FloatArray
+    score: FloatArray
+    source: tuple[str, ...]
+    how: tuple[str, ...]
+    box: FloatArray
+    box_index: IntArray
+    laser_index: IntArray
+
+    def __post_init__(self) -> None:
+        xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
+        n = len(xy)
+        cov = np.asarray(self.cov, dtype=np.float64).reshape(n, 2, 2)
+        score = np.asarray(self.score, dtype=np.float64).reshape(n)
+        box = np.asarray(self.box, dtype=np.float64).reshape(n, 4)
+        bi = np.asarray(self.box_index, dtype=np.int64).reshape(n)
+        li = np.asarray(self.laser_index, dtype=np.int64).reshape(n)
+        if len(self.source) != n or len(self.how) != n:
+            raise ValueError("PersonObservations: source and how need one entry per person")
+        if not set(self.source) <= set(SOURCES) or not set(self.how) <= set(HOW):
+            raise ValueError(f"PersonObservations: unknown source/how {set(self.source)} {set(self.how)}")
+        if not np.all(np.isfinite(xy)) or not np.all(np.isfinite(cov)):
+            raise ValueError("PersonObservations: xy and cov must be finite")
+        for name, val in (("xy", xy), ("cov", cov), ("score", score), ("box", box)):
+            object.__setattr__(self, name, val)
+        object.__setattr__(self, "box_index", bi)
+        object.__setattr__(self, "laser_index", li)
+        object.__setattr__(self, "source", tuple(self.source))
+        object.__setattr__(self, "how", tuple(self.how))
+
+    def __len__(self) -> int:
+        return len(self.xy)
+
+    @staticmethod
+    def empty() -> PersonObservations:
+        return PersonObservations(
+            np.zeros((0, 2)),
+            np.zeros((0, 2, 2)),
+            np.zeros(0),
+            (),
+            (),
+            np.zeros((0, 4)),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
+        )
+
+    @staticmethod
+    def concat(parts: list[PersonObservations]) -> PersonObservations:
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            return PersonObservations.empty()
+        return PersonObservations(
+            np.concatenate([p.xy for p in parts]),
+            np.concatenate([p.cov for p in parts]),
+            np.concatenate([p.score for p in parts]),
+            tuple(s for p in parts for s in p.source),
+            tuple(s for p in parts for s in p.how),
+            np.concatenate([p.box for p in parts]),
+            np.concatenate([p.box_index for p in parts]),
+            np.concatenate([p.laser_index for p in parts]),
+        )

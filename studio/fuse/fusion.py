@@ -1,0 +1,302 @@
+"""Box ↔ laser fusion on the sphere (issue 3, item 3).
+
+Laser detections are projected into the panorama with the rig's camera pose (spherical model, no per-face
+homographies). Each person box gets a range estimate from the image alone — the foot row on the floor plane
+(ankle keypoints, else the box bottom), or the apparent torso length when the feet are hidden — and boxes
+are associated one-to-one with laser detections (Hungarian) on column and range consistency. A box that
+finds no detection takes the scan cluster inside its azimuth span closest to the robot (the thesis's
+fallback, here also range-gated); failing that, an image-only position from its range cue with a large
+covariance. There is never a fixed fallback position. Laser detections no box confirms are kept with source
+``laser``; whether they survive is decided at the track level.
+
+All positions are in the robot base frame, metres; ranges are horizontal distances from the camera centre.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linear_sum_assignment
+
+from studio.detect.image.base import ImageDetections
+from studio.detect.laser.base import LaserDetections
+from studio.fuse.base import FusionConfig, PersonObservations
+from studio.geometry import EquirectCamera
+
+__all__ = ["BoxRange", "box_ranges", "fuse_frame", "points_columns"]
+
+FloatArray = NDArray[np.float64]
+
+# COCO keypoint indices (MoveNet order)
+_SHOULDERS = (5, 6)
+_HIPS = (11, 12)
+_KNEES = (13, 14)
+_ANKLES = (15, 16)
+_BIG = 1e9
+
+
+@dataclass(frozen=True)
+class BoxRange:
+    """Image-only range cues of N boxes.
+
+    Attributes:
+        u_center: ``(N,)`` box centre column, px (may exceed W across the seam).
+        az: ``(N,)`` bearing of the box centre in the base frame, seen from the camera, rad.
+        range: ``(N,)`` horizontal distance camera → person, m (NaN when the image gives none).
+        sigma: ``(N,)`` 1-σ of ``range``, m (inf when unknown).
+        how: N strings: ``foot-row``, ``torso-size`` or ``none``.
+    """
+
+    u_center: FloatArray
+    az: FloatArray
+    range: FloatArray
+    sigma: FloatArray
+    how: tuple[str, ...]
+
+
+def _cam_xy(camera: EquirectCamera) -> FloatArray:
+    return np.asarray(camera.pose.t[:2], dtype=np.float64)
+
+
+def _column_azimuth(camera: EquirectCamera, u: FloatArray) -> FloatArray:
+    """Bearing in the base frame (seen from the camera) of panorama columns, at the horizon row."""
+    v = np.full_like(u, camera.height / 2.0)
+    rays = camera.bearing_base(np.stack([u % camera.width, v], axis=-1))
+    return np.arctan2(rays[:, 1], rays[:, 0])
+
+
+def _ground_range(camera: EquirectCamera, u: float, v: float, z: float) -> float:
+    p = camera.backproject_to_ground(np.array([[u % camera.width, v]]), ground_z=z)[0]
+    if not np.all(np.isfinite(p)):
+        return float("nan")
+    return float(np.hypot(*(p[:2] - _cam_xy(camera))))
+
+
+def box_ranges(
+    dets: ImageDetections, camera: EquirectCamera, *, config: FusionConfig | None = None
+) -> BoxRange:
+    """Range cues of every box from the image alone (see the module docstring)."""
+    cfg = config or FusionConfig()
+    n = len(dets.boxes)
+    boxes = dets.boxes
+    uc = (boxes[:, 0] + boxes[:, 2]) / 2.0 if n else np.zeros(0)
+    az = _column_azimuth(camera, uc) if n else np.zeros(0)
+    rng = np.full(n, np.nan)
+    sig = np.full(n, np.inf)
+    how = ["none"] * n
+    sigma_v = cfg.foot_sigma_px * camera.width / 1920.0
+    kp = dets.keypoints
+    for i in range(n):
+        foot_v, foot_z = None, cfg.floor_z
+        torso = None
+        if kp is not None:
+            k = kp[i]
+            ok = k[:, 2] >= cfg.foot_kpt_min_score
+            ankles = [j for j in _ANKLES if ok[j]]
+            if ankles:
+                foot_v = float(max(k[j, 1] for j in ankles))
+                foot_z = cfg.floor_z + cfg.ankle_height
+            elif not any(ok[j] for j in _KNEES) and ok[list(_SHOULDERS)].any() and ok[list(_HIPS)].any():
+                sh = [j for j in _SHOULDERS if ok[j]]
+                hp = [j for j in _HIPS if ok[j]]
+                torso = (float(np.mean(k[sh, 1])), float(np.mean(k[hp, 1])))
+            elif any(ok[j] for j in _KNEES):
+                foot_v = float(boxes[i, 3])  # legs seen down to the knees at least: the box bottom
+        else:
+            foot_v = float(boxes[i, 3])
+        if foot_v is not None:
+            r = _ground_range(camera, uc[i], foot_v, foot_z)
+            if np.isfinite(r) and r <= cfg.max_range:
+                r_hi = _ground_range(camera, uc[i], foot_v - sigma_v, foot_z)
+                r_lo = _ground_range(camera, uc[i], foot_v + sigma_v, foot_z)
+                s = abs(r_hi - r_lo) / 2.0 if np.isfinite(r_hi) and np.isfinite(r_lo) else np.inf
+                rng[i], sig[i], how[i] = r, max(s, 0.05), "foot-row"
+                continue
+        if torso is not None:
+            _, el_s = camera.pixel_to_angles(np.array([uc[i] % camera.width]), np.array([torso[0]]))
+            _, el_h = camera.pixel_to_angles(np.array([uc[i] % camera.width]), np.array([torso[1]]))
+            dt = float(np.tan(el_s[0]) - np.tan(el_h[0]))
+            if dt > 1e-3:
+                r = cfg.torso_length / dt
+                if r <= cfg.max_range:
+                    rng[i], sig[i], how[i] = r, max(cfg.torso_rel_sigma * r, 0.1), "torso-size"
+    return BoxRange(uc, az, rng, sig, tuple(how))
+
+
+def points_columns(camera: EquirectCamera, points_base: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Panorama columns of base-frame points ``(M, 3)`` and their horizontal ranges from the camera."""
+    pts = np.asarray(points_base, dtype=np.float64).reshape(-1, 3)
+    if not len(pts):
+        return np.zeros(0), np.zeros(0)
+    uv, _ = camera.project(pts)
+    rng = np.hypot(*(pts[:, :2] - _cam_xy(camera)).T)
+    return uv[:, 0], rng
+
+
+def _offset_in_box(u: FloatArray, u1: float, u2: float, width: int) -> FloatArray:
+    """Signed column offset of ``u`` from the box centre, seam-aware, px."""
+    c = (u1 + u2) / 2.0
+    return (u - c + width / 2.0) % width - width / 2.0
+
+
+def _polar_cov(az: float, r: float, sigma_r: float, sigma_t: float) -> FloatArray:
+    c, s = np.cos(az), np.sin(az)
+    R = np.array([[c, -s], [s, c]])
+    return R @ np.diag([sigma_r**2, sigma_t**2]) @ R.T
+
+
+def fuse_frame(
+    image: ImageDetections | None,
+    laser: LaserDetections | None,
+    *,
+    camera: EquirectCamera | None,
+    laser_z: FloatArray | float = 0.3,
+    scan_points: FloatArray | None = None,
+    config: FusionConfig | None = None,
+) -> PersonObservations:
+    """Fuse one frame's image and laser people into positions in the base frame.
+
+    Args:
+        image: boxes (+ keypoints) on the panorama, or None (laser-only).
+        laser: laser people in the base frame, or None (camera-only).
+        camera: the panorama camera with its pose in the base frame; needed when ``image`` is given.
+        laser_z: height of each laser detection's scan plane in the base frame, m (scalar or ``(N,)``).
+        scan_points: ``(M, 3)`` valid, non-static scan points in the base frame for the cluster fallback.
+        config: association parameters.
+
+    Returns:
+        The fused people: one per box that found a position, plus laser detections no box took.
+    """
+    cfg = config or FusionConfig()
+    n_l = 0 if laser is None else len(laser.xy)
+    n_b = 0 if image is None else len(image.boxes)
+    parts: list[PersonObservations] = []
+    used_laser = np.zeros(n_l, dtype=bool)
+    if n_b and image is not None:
+        if camera is None:
+            raise ValueError("fuse_frame: image detections need the camera")
+        W = camera.width
+        br = box_ranges(image, camera, config=cfg)
+        boxes = image.boxes
+        bw = np.maximum(boxes[:, 2] - boxes[:, 0], 1.0)
+        cost = np.full((n_b, n_l), _BIG)
+        if n_l and laser is not None:
+            z = np.broadcast_to(np.asarray(laser_z, dtype=np.float64), (n_l,))
+            u_l, r_l = points_columns(camera, np.c_[laser.xy, z])
+            for i in range(n_b):
+                off = _offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
+                inside = np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac
+                if np.isfinite(br.range[i]):
+                    s = np.hypot(br.sigma[i], cfg.laser_sigma)
+                    dr = (r_l - br.range[i]) / s
+                    ok = inside & (np.abs(r_l - br.range[i]) <= max(cfg.gate_range_min, cfg.gate_sigma * s))
+                    c = off**2 + dr**2
+                else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
+                    ok = inside & (r_l <= cfg.max_range)
+                    c = off**2 + r_l / cfg.max_range
+                cost[i, ok] = c[ok]
+            rows, cols = linear_sum_assignment(cost)
+            for i, j in zip(rows, cols, strict=True):
+                if cost[i, j] >= _BIG:
+                    continue
+                used_laser[j] = True
+                sc = 1.0 - (1.0 - image.scores[i]) * (1.0 - laser.scores[j])
+                parts.append(
+                    _one(
+                        laser.xy[j],
+                        cfg.laser_sigma**2 * np.eye(2),
+                        sc,
+                        "fused",
+                        "laser-detection",
+                        boxes[i],
+                        i,
+                        j,
+                    )
+                )
+        matched_boxes = {int(p.box_index[0]) for p in parts}
+        pts = None if scan_points is None else np.asarray(scan_points, dtype=np.float64).reshape(-1, 3)
+        u_p, r_p = points_columns(camera, pts) if pts is not None and len(pts) else (np.zeros(0), np.zeros(0))
+        cam_xy = _cam_xy(camera)
+        for i in range(n_b):
+            if i in matched_boxes:
+                continue
+            obs = None
+            if len(u_p) and pts is not None:
+                off = _offset_in_box(u_p, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
+                sel = np.abs(off) <= cfg.cluster_core_frac
+                if np.isfinite(br.range[i]):
+                    gate = max(cfg.gate_range_min + 0.2, cfg.gate_sigma * br.sigma[i])
+                    sel &= np.abs(r_p - br.range[i]) <= gate
+                sel &= r_p <= cfg.max_range
+                idx = np.flatnonzero(sel)
+                if len(idx) >= cfg.cluster_min_points:
+                    order = idx[np.argsort(r_p[idx])]
+                    gaps = np.flatnonzero(np.diff(r_p[order]) > cfg.cluster_gap)
+                    starts = np.r_[0, gaps + 1]
+                    ends = np.r_[gaps + 1, len(order)]
+                    for a, b in zip(starts, ends, strict=True):
+                        if b - a >= cfg.cluster_min_points:
+                            cl = pts[order[a:b], :2]
+                            xy = np.median(cl, axis=0)
+                            d = xy - cam_xy
+                            xy = xy + cfg.leg_radius * d / max(float(np.linalg.norm(d)), 1e-6)
+                            obs = _one(
+                                xy,
+                                cfg.cluster_sigma**2 * np.eye(2),
+                                float(image.scores[i]) * 0.9,
+                                "fused",
+                                "scan-cluster",
+                                boxes[i],
+                                i,
+                                -1,
+                            )
+                            break
+            if obs is None and np.isfinite(br.range[i]):
+                az, r = float(br.az[i]), float(br.range[i])
+                xy = cam_xy + r * np.array([np.cos(az), np.sin(az)])
+                sig_t = r * cfg.bearing_sigma_frac * bw[i] * 2.0 * np.pi / W
+                obs = _one(
+                    xy,
+                    _polar_cov(az, r, br.sigma[i], max(sig_t, 0.05)),
+                    float(image.scores[i]) * 0.8,
+                    "image",
+                    br.how[i],
+                    boxes[i],
+                    i,
+                    -1,
+                )
+            if obs is not None:
+                parts.append(obs)
+    if n_l and laser is not None:
+        rest = np.flatnonzero(~used_laser)
+        if len(rest):
+            parts.append(
+                PersonObservations(
+                    laser.xy[rest],
+                    np.repeat(cfg.laser_sigma**2 * np.eye(2)[None], len(rest), axis=0),
+                    laser.scores[rest],
+                    ("laser",) * len(rest),
+                    ("laser-only",) * len(rest),
+                    np.full((len(rest), 4), np.nan),
+                    np.full(len(rest), -1),
+                    rest,
+                )
+            )
+    return PersonObservations.concat(parts)
+
+
+def _one(
+    xy: FloatArray, cov: FloatArray, score: float, source: str, how: str, box: FloatArray, bi: int, li: int
+) -> PersonObservations:
+    return PersonObservations(
+        np.asarray(xy, dtype=np.float64)[None],
+        np.asarray(cov)[None],
+        np.array([min(max(score, 0.0), 1.0)]),
+        (source,),
+        (how,),
+        np.asarray(box, dtype=np.float64)[None],
+        np.array([bi]),
+        np.array([li]),
+    )

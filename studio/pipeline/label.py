@@ -1,0 +1,450 @@
+"""``studio label``: recording + rig → people's positions with identities in every frame.
+
+Two passes. The first streams the recording once (images decoded one at a time, memory flat in the number
+of images) and keeps per frame only what later stages need: image detections with an appearance histogram
+per box, laser detections in the base frame and the frame's scan points. Between the passes, the scan points
+of the whole recording build the static-world map in the odom frame. The second pass fuses, tracks in the
+odom frame (UKF + GNN, RTS smoothing, tracklet stitching) and returns labels.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from studio.detect.laser.base import LaserDetections, merge_detections
+from studio.errors import StudioError
+from studio.fuse.base import PersonObservations
+from studio.fuse.fusion import fuse_frame
+from studio.geometry import EquirectCamera
+from studio.geometry.se import Pose2
+from studio.labels.base import LabelFrame, LabelPerson, as_box
+from studio.pipeline.base import FrameResult, LabelOptions
+
+__all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
+
+FloatArray = NDArray[np.float64]
+_STATIC_OCCUPIED = 0.7  # a cell is structure when it was hit in this share of the scans that saw it
+
+
+@dataclass
+class PerceptionFrame:
+    """Pass-one output for one frame (detections only; no images are kept)."""
+
+    index: int
+    stamp_ns: int
+    robot_pose: Pose2
+    image: Any | None  # ImageDetections
+    appearance: NDArray[np.float32] | None  # (n_boxes, D)
+    laser: LaserDetections | None  # base frame, segments index into `points`
+    laser_z: FloatArray  # (n_laser,) scan-plane height of each detection in the base frame
+    points: NDArray[np.float32]  # (M, 3) all beams of the frame's scans in the base frame, NaN = no return
+    origins: FloatArray  # (S, 2) scanner positions in the base frame
+    origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
+
+
+@dataclass
+class LabelRun:
+    """Everything ``studio label`` produces, in memory."""
+
+    labels: list[LabelFrame]
+    detections: list[FrameResult]
+    image_size: tuple[int, int] | None
+    camera: EquirectCamera | None
+    timings_s: dict[str, float] = field(default_factory=dict)
+    counts: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def _laser_in_base(
+    frame: Any, detector: Any
+) -> tuple[LaserDetections, FloatArray, NDArray[np.float32], FloatArray, NDArray[np.int16]]:
+    parts, zs, pts_all, origins, owner = [], [], [], [], []
+    offset = 0
+    offsets = []
+    for k, sib in enumerate(frame.scans):
+        scan = sib.scan
+        pts2 = scan.points()
+        valid = scan.valid()
+        det = detector.detect(pts2, valid=valid)
+        pose = sib.sensor_pose
+        m = pose.to_pose2().matrix()
+        parts.append(det.transformed(m))
+        p3 = np.zeros((len(pts2), 3))
+        p3[:, :2] = np.nan_to_num(pts2)
+        p3 = pose.apply(p3)
+        p3[~valid] = np.nan
+        pts_all.append(p3.astype(np.float32))
+        owner.append(np.full(len(p3), k, np.int16))
+        origins.append(pose.t[:2])
+        zs.append(np.full(len(det.xy), float(pose.t[2])))
+        offsets.append(offset)
+        offset += len(p3)
+    if not parts:
+        return (
+            LaserDetections.empty(with_segments=True),
+            np.zeros(0),
+            np.zeros((0, 3), np.float32),
+            np.zeros((0, 2)),
+            np.zeros(0, np.int16),
+        )
+    merged = merge_detections(parts, offsets=offsets)
+    z_all = np.concatenate(zs)
+    # height of a merged detection: that of the scan whose points dominate its segment
+    points = np.concatenate(pts_all)
+    if merged.segments is not None and len(points):
+        laser_z = np.array(
+            [float(np.nanmedian(points[s, 2])) if len(s) else float(np.mean(z_all)) for s in merged.segments]
+        )
+    else:
+        laser_z = np.full(len(merged.xy), float(np.mean(z_all)) if len(z_all) else 0.0)
+    return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def perceive(
+    recording: Path,
+    rig: Any,
+    options: LabelOptions,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    on_frame: Callable[[Any, PerceptionFrame], None] | None = None,
+) -> tuple[list[PerceptionFrame], dict[str, Any]]:
+    """Pass one: stream the recording, detect people in images and scans.
+
+    Args:
+        recording: the bag.
+        rig: the loaded rig (:class:`studio.io.rig.Rig`).
+        options: what to run.
+        progress: called as ``progress(done, total)``.
+        on_frame: called with ``(frame, perception)`` for every frame while its image is still in memory
+            (the viewer and the frame exporter hook in here).
+
+    Returns:
+        The frames and a dict of counts/timings/sync report.
+    """
+    from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
+    from studio.io.sync import SyncReport
+
+    use_camera = rig.camera is not None and options.sources in ("both", "camera")
+    use_laser = bool(rig.lasers) and options.sources in ("both", "laser")
+    if options.sources == "camera" and rig.camera is None:
+        raise StudioError("--sources camera needs a camera in the rig")
+    if options.sources == "laser" and not rig.lasers:
+        raise StudioError("--sources laser needs at least one laser in the rig")
+    image_detector = None
+    if use_camera:
+        from studio.detect.image import get_image_detector
+
+        image_detector = get_image_detector(options.image_detector or "movenet")
+    laser_detector = None
+    if use_laser:
+        from studio.detect.laser import get_laser_detector
+
+        laser_detector = get_laser_detector(options.laser_detector or "classical")
+
+    from studio.track.appearance import colour_histogram
+
+    t_img = t_las = t_io = 0.0
+    frames: list[PerceptionFrame] = []
+    report = SyncReport()
+    with open_recording(recording) as rec:
+        rig = resolve_sensor_poses(rec, rig)
+        total = count_frames(rec, rig)
+        it: Iterator[Any] = iter(iter_frames(rec, rig, report=report))
+        t0 = time.perf_counter()
+        for frame in it:
+            t1 = time.perf_counter()
+            t_io += t1 - t0
+            image = appearance = None
+            stamp = frame.stamp_ns
+            if frame.panorama is not None:
+                stamp = frame.panorama.stamp_ns
+            if use_camera and frame.panorama is not None and image_detector is not None:
+                pano = frame.panorama.image
+                image = image_detector.detect(pano)
+                appearance = _box_histograms(pano, image.boxes, colour_histogram)
+            t2 = time.perf_counter()
+            t_img += t2 - t1
+            if use_laser and laser_detector is not None:
+                laser, laser_z, points, origins, owner = _laser_in_base(frame, laser_detector)
+            else:
+                laser, laser_z = None, np.zeros(0)
+                _, _, points, origins, owner = (
+                    _laser_in_base(frame, _NoDetector())
+                    if frame.scans
+                    else (None, None, np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
+                )
+            t3 = time.perf_counter()
+            t_las += t3 - t2
+            pf = PerceptionFrame(
+                frame.index,
+                stamp,
+                frame.robot_pose,
+                image,
+                appearance,
+                laser,
+                laser_z,
+                points,
+                origins,
+                owner,
+            )
+            frames.append(pf)
+            if on_frame is not None:
+                on_frame(frame, pf)
+            if progress is not None:
+                progress(len(frames), total)
+            t0 = time.perf_counter()
+    info = {
+        "timings_s": {"read_decode_sync": t_io, "image_detection": t_img, "laser_detection": t_las},
+        "sync": report.summary(),
+        "frames": len(frames),
+        "use_camera": use_camera,
+        "use_laser": use_laser,
+        "rig": rig,
+    }
+    return frames, info
+
+
+class _NoDetector:
+    def detect(self, points: FloatArray, *, valid: Any = None) -> LaserDetections:
+        return LaserDetections.empty(with_segments=True)
+
+
+def _box_histograms(
+    pano: NDArray[np.uint8], boxes: FloatArray, hist: Callable[..., Any]
+) -> NDArray[np.float32]:
+    """Colour histogram of the torso part of each box (upper-middle 20–60 % of its height)."""
+    H, W = pano.shape[:2]
+    out = []
+    for u1, v1, u2, v2 in boxes:
+        h = v2 - v1
+        r1, r2 = int(max(0, v1 + 0.2 * h)), int(min(H, v1 + 0.6 * h))
+        cols = np.arange(int(u1 + 0.25 * (u2 - u1)), int(np.ceil(u2 - 0.25 * (u2 - u1))) + 1) % W
+        crop = pano[r1:r2][:, cols] if r2 > r1 and len(cols) else np.zeros((0, 3), np.uint8)
+        out.append(hist(crop))
+    if not out:
+        return np.zeros((0, 48), np.float32)
+    return np.stack(out).astype(np.float32)
+
+
+def _static_masks(frames: list[PerceptionFrame]) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
+    """Per frame: which laser detections and which scan points lie on never-moving structure."""
+    from studio.detect.laser.static_map import StaticMap
+
+    def scans() -> Iterator[tuple[FloatArray, FloatArray]]:
+        for f in frames:
+            for k in range(len(f.origins)):
+                sel = (f.origin_of_point == k) & np.isfinite(f.points[:, 0])
+                yield (
+                    f.robot_pose.apply(f.points[sel, :2].astype(np.float64)),
+                    f.robot_pose.apply(f.origins[k]),
+                )
+
+    smap = StaticMap.build(scans())
+    det_static, pt_static = [], []
+    for f in frames:
+        pts_odom = f.robot_pose.apply(f.points[:, :2].astype(np.float64))  # NaN rows stay NaN
+        pt_static.append(smap.static_fraction(pts_odom) >= _STATIC_OCCUPIED)
+        if f.laser is not None and len(f.laser.xy):
+            det_static.append(smap.is_static(f.laser, pts_odom, occupied=_STATIC_OCCUPIED))
+        else:
+            det_static.append(np.zeros(0 if f.laser is None else len(f.laser.xy), dtype=bool))
+    return det_static, pt_static
+
+
+def fuse_all(
+    frames: list[PerceptionFrame],
+    camera: EquirectCamera | None,
+    options: LabelOptions,
+) -> list[FrameResult]:
+    """Static filter + fusion of every frame (base frame)."""
+    if options.static_filter and any(len(f.points) for f in frames):
+        det_static, pt_static = _static_masks(frames)
+    else:
+        det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
+        pt_static = [np.zeros(len(f.points), bool) for f in frames]
+    out = []
+    for f, ds, ps in zip(frames, det_static, pt_static, strict=True):
+        laser = f.laser
+        laser_z: FloatArray = f.laser_z
+        if laser is not None and ds.any():
+            keep = np.flatnonzero(~ds)
+            laser = laser.select(keep)
+            laser_z = laser_z[keep]
+        pts = None
+        if options.sources != "camera" and len(f.points):
+            sel = np.isfinite(f.points[:, 0]) & ~ps
+            pts = f.points[sel].astype(np.float64)
+        obs = fuse_frame(
+            f.image, laser, camera=camera, laser_z=laser_z, scan_points=pts, config=options.fusion
+        )
+        out.append(FrameResult(f.index, f.stamp_ns, f.robot_pose, obs))
+    return out
+
+
+def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
+    from studio.track.base import Observations
+
+    obs = fr.observations
+    pose = fr.robot_pose
+    R = pose.matrix()[:2, :2]
+    xy = pose.apply(obs.xy) if len(obs) else np.zeros((0, 2))
+    cov = R @ obs.cov @ R.T if len(obs) else np.zeros((0, 2, 2))
+    app = None
+    if appearance is not None:
+        d = appearance.shape[1] if appearance.ndim == 2 and appearance.shape[0] else 48
+        app = np.full((len(obs), d), np.nan, np.float32)
+        for k, bi in enumerate(obs.box_index):
+            if bi >= 0 and bi < len(appearance):
+                app[k] = appearance[bi]
+    return Observations(fr.stamp_ns, xy, cov, obs.source, obs.score, app, np.arange(len(obs)))
+
+
+def track_all(
+    frames: list[PerceptionFrame], fused: list[FrameResult], options: LabelOptions, *, has_camera: bool
+) -> list[LabelFrame]:
+    """Track in the odom frame and turn tracks into per-frame labels in the base frame."""
+    from studio.track.offline import track_offline
+
+    observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
+    result = track_offline(observations)
+    # camera confirmation and minimum duration, per track
+    camera_hits: dict[int, int] = {}
+    span: dict[int, list[int]] = {}
+    sources: dict[int, Counter[str]] = {}
+    for fr, tf in zip(fused, result.frames, strict=True):
+        for p in tf.points:
+            span.setdefault(p.track_id, []).append(fr.stamp_ns)
+            if p.det_index >= 0:
+                src = fr.observations.source[p.det_index]
+                sources.setdefault(p.track_id, Counter())[src] += 1
+                if src in ("fused", "image"):
+                    camera_hits[p.track_id] = camera_hits.get(p.track_id, 0) + 1
+    keep = set()
+    for tid, stamps in span.items():
+        if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
+            continue
+        if has_camera and options.sources == "both" and camera_hits.get(tid, 0) < options.min_camera_hits:
+            continue
+        keep.add(tid)
+    labels = []
+    for fr, tf in zip(fused, result.frames, strict=True):
+        inv = fr.robot_pose.inverse()
+        R = inv.matrix()[:2, :2]
+        people = []
+        for p in tf.points:
+            if p.track_id not in keep:
+                continue
+            xb = inv.apply(p.xy)
+            cov = R @ p.cov @ R.T
+            o = fr.observations
+            j = p.det_index
+            box = as_box(o.box[j]) if j >= 0 else None
+            people.append(
+                LabelPerson(
+                    id=p.track_id,
+                    x=float(xb[0]),
+                    y=float(xb[1]),
+                    x_odom=float(p.xy[0]),
+                    y_odom=float(p.xy[1]),
+                    cov=((cov[0, 0], cov[0, 1]), (cov[1, 0], cov[1, 1])),
+                    source=o.source[j] if j >= 0 else sources[p.track_id].most_common(1)[0][0],
+                    box=box,
+                    score=float(o.score[j]) if j >= 0 else None,
+                    extra={"interpolated": True} if j < 0 else {},
+                )
+            )
+        labels.append(LabelFrame(fr.index, tuple(people), fr.stamp_ns, fr.robot_pose))
+    return labels
+
+
+def label_recording(
+    recording: str | Path,
+    rig: Any,
+    *,
+    options: LabelOptions | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    on_frame: Callable[[Any, PerceptionFrame], None] | None = None,
+) -> LabelRun:
+    """Label a recording (both passes). See the module docstring."""
+    opts = options or LabelOptions()
+    if rig.camera is None and opts.sources == "both":
+        opts = LabelOptions(**{**opts.__dict__, "sources": "laser"})
+    if opts.method == "thesis":
+        from studio.pipeline.thesis import label_thesis
+
+        return label_thesis(Path(recording), rig, opts, progress=progress, on_frame=on_frame)
+    t0 = time.perf_counter()
+    sizes: dict[str, tuple[int, int]] = {}
+
+    def hook(frame: Any, pf: PerceptionFrame) -> None:
+        if frame.panorama is not None and "size" not in sizes:
+            sizes["size"] = (frame.panorama.image.shape[1], frame.panorama.image.shape[0])
+        if on_frame is not None:
+            on_frame(frame, pf)
+
+    frames, info = perceive(Path(recording), rig, opts, progress=progress, on_frame=hook)
+    notes: list[str] = []
+    if not frames:
+        raise StudioError(f"{recording}: no frame could be built ({info['sync']})")
+    camera = None
+    rig = info["rig"]
+    if "size" in sizes and rig.camera is not None:
+        from studio.geometry.se import Pose3
+
+        if rig.camera.pose is None:
+            notes.append("the camera pose is neither in the rig nor in the bag's TF: identity assumed")
+        pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
+        camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose)
+    t1 = time.perf_counter()
+    fused = fuse_all(frames, camera, opts)
+    t2 = time.perf_counter()
+    labels = track_all(frames, fused, opts, has_camera=camera is not None)
+    t3 = time.perf_counter()
+    timings = dict(info["timings_s"])
+    timings.update({"pass1_total": t1 - t0, "static_filter_and_fusion": t2 - t1, "tracking": t3 - t2})
+    counts = {
+        "frames": len(frames),
+        "observations": int(sum(len(f.observations) for f in fused)),
+        "by_source": _count_sources(fused),
+        "tracks": len({p.id for lf in labels for p in lf.people}),
+        "sync": info["sync"],
+    }
+    return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes)
+
+
+def _count_sources(fused: list[FrameResult]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for f in fused:
+        for s, h in zip(f.observations.source, f.observations.how, strict=True):
+            out[f"{s}/{h}"] = out.get(f"{s}/{h}", 0) + 1
+    return out
+
+
+def observations_to_frames(fused: list[FrameResult]) -> list[LabelFrame]:
+    """``detections.yaml`` content: fused people per frame, ids are indices."""
+    out = []
+    for fr in fused:
+        o: PersonObservations = fr.observations
+        people = tuple(
+            LabelPerson(
+                id=k,
+                x=float(o.xy[k, 0]),
+                y=float(o.xy[k, 1]),
+                source=o.source[k],
+                score=float(o.score[k]),
+                box=as_box(o.box[k]),
+                cov=((o.cov[k, 0, 0], o.cov[k, 0, 1]), (o.cov[k, 1, 0], o.cov[k, 1, 1])),
+                extra={"how": o.how[k]},
+            )
+            for k in range(len(o))
+        )
+        out.append(LabelFrame(fr.index, people, fr.stamp_ns, fr.robot_pose))
+    return out

@@ -1,0 +1,143 @@
+"""Box ↔ laser fusion on the sphere: each path of the association, on exact synthetic geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studio.detect.image.base import ImageDetections
+from studio.detect.laser.base import LaserDetections
+from studio.fuse import FusionConfig, box_ranges, fuse_frame
+from studio.geometry import EquirectCamera, Pose3
+
+W, H = 1920, 960
+CAM = EquirectCamera(W, H, Pose3.from_xyz_rpy(0.1, 0.0, 1.15, yaw=0.2))
+
+
+def person(x: float, y: float, *, feet: bool = True, height: float = 1.75) -> tuple[np.ndarray, np.ndarray]:
+    """Panorama box and COCO keypoints of an upright person standing at (x, y) in the base frame."""
+    d = np.array([x, y]) - CAM.pose.t[:2]
+    side = np.array([-d[1], d[0]]) / np.linalg.norm(d) * 0.25
+    pts = np.array([[*(np.array([x, y]) + s * side), z] for s in (-1, 1) for z in (0.0, height)])
+    uv, _ = CAM.project(pts)
+    u = uv[:, 0]
+    if u.max() - u.min() > W / 2:  # across the seam
+        u = np.where(u < W / 2, u + W, u)
+    box = np.array([u.min(), uv[:, 1].min(), u.max(), uv[:, 1].max()])
+    kp = np.zeros((17, 3))
+    joints = {5: 1.45, 6: 1.45, 11: 0.95, 12: 0.95, 13: 0.5, 14: 0.5, 15: 0.08, 16: 0.08}
+    for j, z in joints.items():
+        if not feet and j >= 13:
+            continue
+        uv1, _ = CAM.project(np.array([[x, y, z]]))
+        kp[j] = (uv1[0, 0], uv1[0, 1], 0.9)
+    if box[2] >= W:
+        box[0] %= W
+        box[2] = box[0] + (box[2] - box[0])
+    return box, kp
+
+
+def dets(*people: tuple[np.ndarray, np.ndarray]) -> ImageDetections:
+    boxes = np.array([p[0] for p in people]).reshape(-1, 4)
+    kps = np.array([p[1] for p in people]).reshape(-1, 17, 3)
+    return ImageDetections(boxes, np.full(len(people), 0.8), kps, W, H)
+
+
+def laser(*xy: tuple[float, float]) -> LaserDetections:
+    a = np.array(xy, dtype=float).reshape(-1, 2)
+    return LaserDetections(a, np.full(len(a), 0.7), np.zeros(len(a), int), np.full(len(a), 0.2))
+
+
+def legs(x: float, y: float, n: int = 8) -> np.ndarray:
+    d = np.array([x, y]) / np.hypot(x, y)
+    t = np.array([-d[1], d[0]])
+    pts = [np.array([x, y]) - 0.06 * d + t * s for s in np.linspace(-0.15, 0.15, n)]
+    return np.c_[np.array(pts), np.full(n, 0.3)]
+
+
+def test_foot_row_range_is_exact_for_visible_ankles() -> None:
+    br = box_ranges(dets(person(3.0, 1.0)), CAM)
+    true = np.hypot(3.0 - 0.1, 1.0)
+    assert br.how == ("foot-row",)
+    assert br.range[0] == pytest.approx(true, abs=0.02)
+    assert 0.0 < br.sigma[0] < 0.3
+
+
+def test_torso_size_when_feet_hidden() -> None:
+    br = box_ranges(dets(person(1.5, -0.5, feet=False)), CAM)
+    assert br.how == ("torso-size",)
+    assert br.range[0] == pytest.approx(np.hypot(1.4, 0.5), rel=0.1)
+
+
+def test_box_with_laser_detection_is_fused_at_the_laser_position() -> None:
+    obs = fuse_frame(dets(person(3.0, 1.0)), laser((3.02, 0.97)), camera=CAM)
+    assert obs.source == ("fused",)
+    assert obs.how == ("laser-detection",)
+    np.testing.assert_allclose(obs.xy[0], [3.02, 0.97])
+    assert obs.box_index[0] == 0
+    assert obs.laser_index[0] == 0
+
+
+def test_range_consistency_picks_the_right_detection_in_one_column() -> None:
+    # two people behind each other in almost the same column; laser sees both
+    obs = fuse_frame(dets(person(2.0, 0.5), person(5.0, 1.3)), laser((5.0, 1.3), (2.0, 0.5)), camera=CAM)
+    by_box = {int(b): tuple(obs.xy[k]) for k, b in enumerate(obs.box_index)}
+    assert by_box[0] == pytest.approx((2.0, 0.5))
+    assert by_box[1] == pytest.approx((5.0, 1.3))
+    assert set(obs.source) == {"fused"}
+
+
+def test_box_across_the_seam() -> None:
+    # straight behind the camera (camera yaw 0.2 rad): the seam runs through the person
+    x, y = 0.1 + 3.0 * np.cos(np.pi + 0.2), 3.0 * np.sin(np.pi + 0.2)
+    p = person(x, y)
+    assert p[0][0] < W < p[0][2]  # one box across the 0/360° seam
+    obs = fuse_frame(dets(p), laser((x, y + 0.03)), camera=CAM)
+    assert obs.source == ("fused",)
+
+
+def test_scan_cluster_fallback_takes_the_closest_person_not_the_wall() -> None:
+    wall = np.c_[np.full(30, 6.0), np.linspace(0.0, 3.0, 30), np.full(30, 0.3)]
+    pts = np.r_[legs(3.0, 1.0), wall]
+    obs = fuse_frame(dets(person(3.0, 1.0)), None, camera=CAM, scan_points=pts)
+    assert obs.how == ("scan-cluster",)
+    assert np.hypot(*(obs.xy[0] - [3.0, 1.0])) < 0.1
+
+
+def test_image_only_position_has_a_radial_covariance() -> None:
+    obs = fuse_frame(dets(person(4.0, -2.0)), None, camera=CAM)
+    assert obs.source == ("image",)
+    assert obs.how == ("foot-row",)
+    assert np.hypot(*(obs.xy[0] - [4.0, -2.0])) < 0.15
+    evals, evecs = np.linalg.eigh(obs.cov[0])
+    radial = np.array([4.0 - 0.1, -2.0]) / np.hypot(4.0 - 0.1, -2.0)
+    assert abs(evecs[:, 1] @ radial) > 0.9  # the long axis points along the ray
+    assert evals[1] > evals[0]
+
+
+def test_feet_hidden_by_the_robot_the_laser_decides() -> None:
+    # very close person: only shoulders and hips visible, size cue coarse; the laser has the answer
+    obs = fuse_frame(dets(person(0.9, 0.3, feet=False)), laser((0.9, 0.3), (4.0, 4.0)), camera=CAM)
+    fused = [k for k, s in enumerate(obs.source) if s == "fused"]
+    assert len(fused) == 1
+    np.testing.assert_allclose(obs.xy[fused[0]], [0.9, 0.3])
+
+
+def test_unconfirmed_laser_detections_are_kept_as_laser() -> None:
+    obs = fuse_frame(dets(person(3.0, 1.0)), laser((3.0, 1.0), (-2.0, -2.0)), camera=CAM)
+    assert sorted(obs.source) == ["fused", "laser"]
+    k = obs.source.index("laser")
+    np.testing.assert_allclose(obs.xy[k], [-2.0, -2.0])
+    assert np.all(np.isnan(obs.box[k]))
+
+
+def test_no_fixed_fallback_position() -> None:
+    # a box whose foot row is above the horizon (nonsense) and no laser: nothing is invented
+    bad = ImageDetections(np.array([[100.0, 10.0, 150.0, 60.0]]), np.array([0.9]), None, W, H)
+    obs = fuse_frame(bad, None, camera=CAM, config=FusionConfig())
+    assert len(obs) == 0
+
+
+def test_laser_only_rig() -> None:
+    obs = fuse_frame(None, laser((1.0, 2.0)), camera=None)
+    assert obs.source == ("laser",)
