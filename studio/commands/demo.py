@@ -19,7 +19,14 @@ def run(args: argparse.Namespace) -> int:
     from studio.sim import DEFAULT_RECORDING, default_recording
 
     scenario, seconds, seed = DEFAULT_RECORDING
-    bar = tqdm(total=None, unit="frame", desc="simulating default recording", leave=False, mininterval=1.0)
+    bar = tqdm(
+        total=None,
+        unit="frame",
+        desc="simulating the default recording",
+        leave=False,
+        disable=None,
+        mininterval=0.5,
+    )
 
     def progress(done: int, total: int) -> None:
         bar.total = total

@@ -33,11 +33,23 @@ def run_label(
     if not recording.exists():
         raise StudioError(f"{recording}: no such recording")
     rig = load_rig(rig_path)
-    bar = tqdm(total=None, unit="frame", desc="labeling", disable=quiet, leave=False, mininterval=1.0)
+    bars: list[Any] = []
 
     def progress(done: int, total: int) -> None:
-        if bar.total != total:
-            bar.total = total
+        if not bars:  # made on the first frame, so an unreadable recording prints only its error
+            # disable=None: no bar when stderr is not a terminal (logs, CI)
+            bars.append(
+                tqdm(
+                    total=total,
+                    unit="frame",
+                    desc="labeling",
+                    disable=True if quiet else None,
+                    leave=False,
+                    mininterval=0.5,
+                )
+            )
+        bar = bars[0]
+        bar.total = total
         bar.update(done - bar.n)
 
     hooks: list[Any] = []
@@ -67,7 +79,8 @@ def run_label(
         try:
             result = label_recording(recording, rig, options=options, progress=progress, on_frame=on_frame)
         finally:
-            bar.close()
+            for bar in bars:
+                bar.close()
         detections = observations_to_frames(result.detections)
         write_label_files(tmp, result.labels, detections, image_size=result.image_size)
         if logger is not None:

@@ -26,6 +26,8 @@ class LabelOptions:
         static_filter: suppress laser detections on structure that never moves (odom-frame map).
         min_camera_hits: on rigs with a camera and ``sources=both``, a track must be confirmed by the camera
             (a fused or image observation) in at least this many frames, else it is dropped as laser clutter.
+        laser_track_min_travel: a track the camera did not confirm is still kept when it moves at least
+            this far from where it started, m (people beyond the image detector's range).
         min_track_s: tracks shorter than this are dropped, s.
         fusion: association parameters.
         export_frames: also write the labeled panoramas as JPEG files (a self-contained dataset).
@@ -37,6 +39,7 @@ class LabelOptions:
     laser_detector: str | None = None
     static_filter: bool = True
     min_camera_hits: int = 3
+    laser_track_min_travel: float = 1.5
     min_track_s: float = 1.0
     fusion: FusionConfig = field(default_factory=FusionConfig)
     export_frames: bool = False

@@ -319,9 +319,11 @@ def track_all(
     camera_hits: dict[int, int] = {}
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
+    xy_odom: dict[int, list[FloatArray]] = {}
     for fr, tf in zip(fused, result.frames, strict=True):
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
+            xy_odom.setdefault(p.track_id, []).append(p.xy)
             if p.det_index >= 0:
                 src = fr.observations.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
@@ -332,7 +334,11 @@ def track_all(
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
             continue
         if has_camera and options.sources == "both" and camera_hits.get(tid, 0) < options.min_camera_hits:
-            continue
+            # the camera never confirmed it (e.g. too far for the image detector): keep it only if it
+            # walks, since clutter that survives the static filter stays put
+            pts = np.array(xy_odom[tid])
+            if float(np.max(np.hypot(*(pts - pts[0]).T))) < options.laser_track_min_travel:
+                continue
         keep.add(tid)
     labels = []
     for fr, tf in zip(fused, result.frames, strict=True):

@@ -1,0 +1,86 @@
+"""A real ROS1 laser bag (leg_tracker, BSD-3) labels laser-only, with plausible tracks."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.labels import read_labels
+
+pytestmark = pytest.mark.slow
+
+
+def _studio(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "studio.cli", *args], capture_output=True, text=True, timeout=600, check=False
+    )
+
+
+def test_laser_only_labels_on_a_real_bag(shared_data: Path, tmp_path: Path) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: laser\nlasers:\n  - topic: /scan\n")  # the laser's own frame, no odometry
+    run = tmp_path / "run"
+    res = _studio(
+        "label",
+        str(shared_data / "demo_stationary_simple_environment.bag"),
+        "--rig",
+        str(rig),
+        "--out",
+        str(run),
+    )
+    assert res.returncode == 0, res.stderr
+    labels = read_labels(run / "labels.jsonl")
+    assert len(labels) == 1265  # one frame per scan
+    info = json.loads((run / "run.json").read_text())
+    assert info["counts"]["tracks"] >= 2
+    xy = np.array([[p.x, p.y] for f in labels for p in f.people])
+    assert len(xy) > 500
+    assert np.all(np.hypot(xy[:, 0], xy[:, 1]) < 5.7)  # inside the scanner's 5.6 m range
+    assert np.all(xy[:, 0] > -0.2)  # the scanner looks forward over ±90°
+    # people walk: some track travels several metres
+    tracks: dict[int, list[tuple[float, float]]] = {}
+    for f in labels:
+        for p in f.people:
+            tracks.setdefault(p.id, []).append((p.x, p.y))
+    travel = max(float(np.ptp(np.array(t), axis=0).max()) for t in tracks.values())
+    assert travel > 2.0
+
+
+def test_truncated_bag_is_one_clear_error_and_writes_nothing(shared_data: Path, tmp_path: Path) -> None:
+    bag = tmp_path / "cut.bag"
+    data = (shared_data / "demo_stationary_simple_environment.bag").read_bytes()
+    bag.write_bytes(data[: len(data) // 3])
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: laser\nlasers:\n  - topic: /scan\n")
+    res = _studio("label", str(bag), "--rig", str(rig), "--out", str(tmp_path / "run"))
+    assert res.returncode == 2
+    assert res.stderr.count("\n") == 1
+    assert "Traceback" not in res.stderr
+    assert not (tmp_path / "run").exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize(
+    ("rig_text", "message"),
+    [
+        ("base_frame: laser\nlasers:\n  - topic: /nope\n", "/nope"),
+        ("base_frame: laser\nlasers: 3\n", "lasers"),
+        ("base_frame: laser\n", "laser"),
+    ],
+)
+def test_bad_rig_is_one_clear_error(shared_data: Path, tmp_path: Path, rig_text: str, message: str) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(rig_text)
+    bag = tmp_path / "b.bag"
+    shutil.copy(shared_data / "demo_stationary_simple_environment.bag", bag)
+    res = _studio("label", str(bag), "--rig", str(rig), "--out", str(tmp_path / "run"))
+    assert res.returncode == 2, res.stderr
+    assert message in res.stderr
+    assert res.stderr.count("\n") == 1
+    assert not (tmp_path / "run").exists()
