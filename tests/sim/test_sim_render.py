@@ -1,0 +1,102 @@
+"""Renderer and laser edge cases: the 0/360° seam, occlusion by walls and by other people, legs in scans."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from studio.geometry import EquirectCamera, Pose3
+from studio.sim import simulate
+from studio.sim.base import SimRig
+from studio.sim.body import body_capsules, draw_appearance, leg_circles
+from studio.sim.laser import LaserCaster
+from studio.sim.render import PanoramaRenderer
+from studio.sim.world import build_world
+
+W, H = 960, 480
+
+
+@pytest.fixture(scope="module")
+def renderer() -> PanoramaRenderer:
+    return PanoramaRenderer(build_world(), width=W, height=H, zc=1.15)
+
+
+def _people(states: np.ndarray, seed: int = 0) -> list:  # type: ignore[type-arg]
+    rng = np.random.default_rng(seed)
+    apps = [draw_appearance(rng) for _ in states]
+    return [(body_capsules(s, a), a) for s, a in zip(states, apps, strict=True)]
+
+
+def test_person_behind_the_robot_gives_one_box_across_the_seam(renderer: PanoramaRenderer) -> None:
+    states = np.array([[-3.0, 0.3, 0.0, 0.0, 0.0]])  # robot at (0, 0.3) facing +x: person right behind
+    img, info = renderer.render(np.array([0.0, 0.3, 0.0]), _people(states), states[:, :2])
+    assert img.shape == (H, W, 3)
+    box = info[0].box
+    assert box is not None
+    assert info[0].visible > 100
+    u1, _, u2, _ = box
+    assert 0 <= u1 < W < u2 < u1 + W / 4
+
+
+def test_walls_hide_people_and_people_hide_each_other(renderer: PanoramaRenderer) -> None:
+    cam = np.array([3.0, 0.5, 0.0])
+    states = np.array(
+        [
+            [9.0, 2.0, 0.0, 0.0, 0.0],  # room B, behind the wall x = 6 (the door is at |y| < 0.6)
+            [5.0, 0.5, 0.0, 0.0, 0.0],  # 2 m ahead
+            [5.8, 0.55, 0.0, 0.0, 0.0],  # right behind the previous one
+        ]
+    )
+    empty, _ = renderer.render(cam, [], np.zeros((0, 2)))
+    img, info = renderer.render(cam, _people(states), states[:, :2])
+    assert info[0].visible == 0
+    assert info[1].visible == info[1].pixels > 0
+    assert 0 < info[2].visible < 0.6 * info[2].pixels
+    cam_model = EquirectCamera(W, H, Pose3.from_xyz_rpy(0.0, 0.0, 1.15))
+    (u, v), _ = cam_model.project(np.array([2.0, 0.0, 1.1]))  # torso of the near person
+    assert np.abs(img[int(v), int(u)].astype(int) - empty[int(v), int(u)].astype(int)).sum() > 30
+
+
+def test_laser_sees_both_legs_with_a_gait_and_none_through_walls() -> None:
+    rig = SimRig()
+    caster = LaserCaster(build_world(), rig)
+    states = np.array([[2.0, 0.3, 0.0, 1.2, np.pi / 2], [9.0, 2.0, 0.0, 0.0, 0.0]])  # walking; behind a wall
+    legs = leg_circles(states, np.array([1.75, 1.75]))
+    assert np.hypot(*(legs[0, 0, :2] - legs[0, 1, :2])) > 0.4  # mid-stride: legs apart
+    standing = leg_circles(np.array([[0.0, 0.0, 0.0, 0.0, 1.0]]), np.array([1.75]))
+    assert np.hypot(*(standing[0, 0, :2] - standing[0, 1, :2])) == pytest.approx(0.18, abs=0.01)
+    res = caster.cast(rig.lasers[0], np.array([0.0, 0.3, 0.0]), legs, np.zeros(2), None)
+    assert res.person_hits[0] >= 10
+    assert res.person_hits[1] == 0
+    hit = res.person == 0
+    pts = np.stack([np.cos(rig.lasers[0].angles()[hit]), np.sin(rig.lasers[0].angles()[hit])], 1)
+    pts = pts * res.true_ranges[hit, None] + np.array([0.4, 0.3])
+    d = np.min(np.hypot(pts[:, None, 0] - legs[0, None, :, 0], pts[:, None, 1] - legs[0, None, :, 1]), axis=1)
+    assert np.all(np.abs(d - legs[0, 0, 2]) < 1e-6)  # returns lie on the leg circles
+    noisy = caster.cast(rig.lasers[0], np.array([0.0, 0.3, 0.0]), legs, np.zeros(2), np.random.default_rng(0))
+    assert noisy.ranges.dtype == np.float32
+    assert np.isnan(noisy.ranges).any()  # dropouts (and the robot's own body) read NaN
+    assert np.isinf(noisy.ranges).sum() == np.isinf(res.true_ranges).sum()  # nothing in range reads +inf
+
+
+def test_a_rotated_camera_puts_people_where_its_pose_projects_them(tmp_path: Path) -> None:
+    pose = Pose3.from_xyz_rpy(0.05, 0.0, 1.15, yaw=np.pi / 2)
+    res = simulate(
+        "static", out=tmp_path / "r", seconds=0.5, seed=4, rig=SimRig(camera_pose=pose, width=960, height=480)
+    )
+    cam = EquirectCamera(960, 480, pose)
+    n = 0
+    for line in res.ground_truth_jsonl.read_text().splitlines():
+        for p in json.loads(line)["people"]:
+            if not p["visible"]["camera"] or p["visible_frac"] < 0.95:
+                continue
+            (u, v), _ = cam.project(np.array([p["x"], p["y"], 1.0]))
+            u1, v1, u2, v2 = p["box"]
+            u = u + 960 if u < u1 else u
+            assert u1 - 2 <= u <= u2 + 2
+            assert v1 - 2 <= v <= v2 + 2
+            n += 1
+    assert n > 0
