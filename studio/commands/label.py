@@ -82,7 +82,13 @@ def run_label(
             for bar in bars:
                 bar.close()
         detections = observations_to_frames(result.detections)
-        write_label_files(tmp, result.labels, detections, image_size=result.image_size)
+        write_label_files(
+            tmp,
+            result.labels,
+            detections,
+            image_size=result.image_size,
+            image_detections=result.image_detections,
+        )
         if logger is not None:
             t_viz = time.perf_counter()
             logger.finish(result, ground_truth=ground_truth)

@@ -5,8 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from studio.fuse.base import FusionConfig, PersonObservations
 from studio.geometry.se import Pose2
+from studio.track.offline import OfflineConfig
 
 __all__ = ["METHODS", "SOURCES_OPTIONS", "FrameResult", "LabelOptions"]
 
@@ -23,13 +27,20 @@ class LabelOptions:
         sources: ``both``, ``laser`` (laser-only baseline) or ``camera`` (camera-only baseline).
         image_detector: registry name or a YOLO ``.onnx`` path (None: the bundled default).
         laser_detector: registry name (None: the classical detector).
+        image_period_s: run the image detector at most this often, s (0: on every frame). The frames in
+            between are fused from the laser alone; tracks carry the camera's confirmation across them.
         static_filter: suppress laser detections on structure that never moves (odom-frame map).
         min_camera_hits: on rigs with a camera and ``sources=both``, a track must be confirmed by the camera
             (a fused or image observation) in at least this many frames, else it is dropped as laser clutter.
-        laser_track_min_travel: a track the camera did not confirm is still kept when it moves at least
-            this far from where it started, m (people beyond the image detector's range).
+        camera_support_s: on rigs with a camera and ``sources=both``, a track is output at a frame only if
+            the camera saw it (fused or image observation) within this many seconds before or after; this
+            cuts the stretches where a track left its person and followed laser clutter, s.
         min_track_s: tracks shorter than this are dropped, s.
         fusion: association parameters.
+        tracking: offline tracking parameters (online UKF pass, stitching, smoothing).
+        recover_radius: after a first tracking pass, a track that has no observation in a frame takes the
+            off-structure scan points within this distance of its smoothed position as one (the laser
+            detector missed the person there), and tracking runs again; 0 turns this off, m.
         export_frames: also write the labeled panoramas as JPEG files (a self-contained dataset).
     """
 
@@ -37,11 +48,14 @@ class LabelOptions:
     sources: str = "both"
     image_detector: str | None = None
     laser_detector: str | None = None
+    image_period_s: float = 0.2
     static_filter: bool = True
     min_camera_hits: int = 3
-    laser_track_min_travel: float = 1.5
+    camera_support_s: float = 3.0
     min_track_s: float = 1.0
     fusion: FusionConfig = field(default_factory=FusionConfig)
+    tracking: OfflineConfig = field(default_factory=OfflineConfig)
+    recover_radius: float = 0.35
     export_frames: bool = False
 
     def __post_init__(self) -> None:
@@ -65,9 +79,11 @@ class FrameResult:
         stamp_ns: the header stamp of the image (or scan) the frame was built from.
         robot_pose: T_odom_base at the frame stamp.
         observations: fused people in the base frame.
+        scan_points: ``(M, 3)`` valid scan points off static structure, base frame (None: no laser used).
     """
 
     index: int
     stamp_ns: int
     robot_pose: Pose2
     observations: PersonObservations
+    scan_points: NDArray[np.float32] | None = None

@@ -91,7 +91,7 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         f"- {n_labels} person labels; by source: "
         + ", ".join(f"{k} {v} ({100.0 * v / max(n_labels, 1):.0f} %)" for k, v in sources.most_common()),
         "  (`fused`: box confirmed by laser; `laser`: laser only; `image`: range from the box's foot row;",
-        "  people marked `\"interpolated\": true` in labels.jsonl bridge a short gap with the smoother)",
+        '  people marked `"interpolated": true` in labels.jsonl bridge a short gap with the smoother)',
         "",
         "## Known limits",
         "- These are automatic labels: check them (`studio annotate`) before using them as ground truth.",

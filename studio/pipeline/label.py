@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,8 @@ class LabelRun:
     timings_s: dict[str, float] = field(default_factory=dict)
     counts: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    image_detections: list[tuple[int, int, Any]] = field(default_factory=list)
+    """``(frame, stamp_ns, ImageDetections)`` for every frame the image detector ran on."""
 
 
 def _laser_in_base(
@@ -152,6 +154,7 @@ def perceive(
     from studio.track.appearance import colour_histogram
 
     t_img = t_las = t_io = 0.0
+    last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
     report = SyncReport()
     with open_recording(recording) as rec:
@@ -166,7 +169,9 @@ def perceive(
             stamp = frame.stamp_ns
             if frame.panorama is not None:
                 stamp = frame.panorama.stamp_ns
-            if use_camera and frame.panorama is not None and image_detector is not None:
+            due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
+            if use_camera and frame.panorama is not None and image_detector is not None and due:
+                last_image_ns = stamp
                 pano = frame.panorama.image
                 image = image_detector.detect(pano)
                 appearance = _box_histograms(pano, image.boxes, colour_histogram)
@@ -285,7 +290,52 @@ def fuse_all(
         obs = fuse_frame(
             f.image, laser, camera=camera, laser_z=laser_z, scan_points=pts, config=options.fusion
         )
-        out.append(FrameResult(f.index, f.stamp_ns, f.robot_pose, obs))
+        out.append(
+            FrameResult(
+                f.index, f.stamp_ns, f.robot_pose, obs, None if pts is None else pts.astype(np.float32)
+            )
+        )
+    return out
+
+
+def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions) -> list[FrameResult]:
+    """Add scan-cluster observations where a track coasted but the laser saw something at its position."""
+    cfg = options.fusion
+    r = options.recover_radius
+    out = []
+    for fr, tf in zip(fused, result.frames, strict=True):
+        pts = fr.scan_points
+        extra = []
+        if pts is not None and len(pts):
+            inv = fr.robot_pose.inverse()
+            taken = fr.observations.xy
+            for p in tf.points:
+                if p.det_index >= 0:
+                    continue
+                c = inv.apply(p.xy)
+                near = np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) <= r
+                if near.sum() < cfg.cluster_min_points:
+                    continue
+                xy = np.median(pts[near, :2].astype(np.float64), axis=0)
+                xy = xy + cfg.leg_radius * xy / max(float(np.hypot(*xy)), 1e-6)
+                if len(taken) and np.min(np.hypot(*(taken - xy).T)) < r:
+                    continue
+                taken = np.vstack([taken, xy[None]])
+                extra.append(xy)
+        if extra:
+            n = len(extra)
+            add = PersonObservations(
+                np.array(extra),
+                np.repeat((cfg.cluster_sigma**2 * np.eye(2))[None], n, 0),
+                np.full(n, 0.3),
+                ("laser",) * n,
+                ("scan-cluster",) * n,
+                np.full((n, 4), np.nan),
+                np.full(n, -1),
+                np.full(n, -1),
+            )
+            fr = replace(fr, observations=PersonObservations.concat([fr.observations, add]))
+        out.append(fr)
     return out
 
 
@@ -314,39 +364,51 @@ def track_all(
     from studio.track.offline import track_offline
 
     observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
-    result = track_offline(observations)
+    result = track_offline(observations, config=options.tracking)
+    if options.recover_radius > 0 and options.sources != "camera":
+        fused[:] = recover_missed(fused, result, options)
+        observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
+        result = track_offline(observations, config=options.tracking)
     # camera confirmation and minimum duration, per track
-    camera_hits: dict[int, int] = {}
+    camera_hits: dict[int, list[int]] = {}
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
-    xy_odom: dict[int, list[FloatArray]] = {}
     for fr, tf in zip(fused, result.frames, strict=True):
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
-            xy_odom.setdefault(p.track_id, []).append(p.xy)
             if p.det_index >= 0:
                 src = fr.observations.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
                 if src in ("fused", "image"):
-                    camera_hits[p.track_id] = camera_hits.get(p.track_id, 0) + 1
+                    camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
+    camera_gate = has_camera and options.sources == "both"
     keep = set()
     for tid, stamps in span.items():
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
             continue
-        if has_camera and options.sources == "both" and camera_hits.get(tid, 0) < options.min_camera_hits:
-            # the camera never confirmed it (e.g. too far for the image detector): keep it only if it
-            # walks, since clutter that survives the static filter stays put
-            pts = np.array(xy_odom[tid])
-            if float(np.max(np.hypot(*(pts - pts[0]).T))) < options.laser_track_min_travel:
-                continue
+        if camera_gate and len(camera_hits.get(tid, ())) < options.min_camera_hits:
+            continue
         keep.add(tid)
+    support = {tid: np.array(v, dtype=np.int64) for tid, v in camera_hits.items()}
+    window_ns = int(options.camera_support_s * 1e9)
+
+    def supported(tid: int, stamp: int) -> bool:
+        if not camera_gate:
+            return True
+        t = support.get(tid)
+        if t is None:
+            return False
+        k = int(np.searchsorted(t, stamp))
+        near = [t[i] for i in (k - 1, k) if 0 <= i < len(t)]
+        return any(abs(int(x) - stamp) <= window_ns for x in near)
+
     labels = []
     for fr, tf in zip(fused, result.frames, strict=True):
         inv = fr.robot_pose.inverse()
         R = inv.matrix()[:2, :2]
         people = []
         for p in tf.points:
-            if p.track_id not in keep:
+            if p.track_id not in keep or not supported(p.track_id, fr.stamp_ns):
                 continue
             xb = inv.apply(p.xy)
             cov = R @ p.cov @ R.T
@@ -423,7 +485,8 @@ def label_recording(
         "tracks": len({p.id for lf in labels for p in lf.people}),
         "sync": info["sync"],
     }
-    return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes)
+    image_dets = [(f.index, f.stamp_ns, f.image) for f in frames if f.image is not None]
+    return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes, image_dets)
 
 
 def _count_sources(fused: list[FrameResult]) -> dict[str, int]:

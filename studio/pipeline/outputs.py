@@ -17,7 +17,14 @@ from studio import __version__
 from studio.atomic import atomic_write_text
 from studio.labels import LabelFrame, write_labels_jsonl, write_labels_yaml
 
-__all__ = ["coco_json", "mot_csv", "package_versions", "write_label_files", "write_run_json"]
+__all__ = [
+    "coco_json",
+    "image_detections_jsonl",
+    "mot_csv",
+    "package_versions",
+    "write_label_files",
+    "write_run_json",
+]
 
 
 def mot_csv(labels: Sequence[LabelFrame]) -> str:
@@ -114,13 +121,34 @@ def write_label_files(
     detections: Sequence[LabelFrame],
     *,
     image_size: tuple[int, int] | None,
+    image_detections: Sequence[tuple[int, int, Any]] = (),
 ) -> None:
-    """labels.yaml/.jsonl, detections.yaml, tracks_mot.csv, boxes_coco.json in ``run_dir``."""
+    """labels.yaml/.jsonl, detections.yaml, tracks_mot.csv, boxes_coco.json (and the raw image detections,
+    ``image_detections.jsonl``, when the image detector ran) in ``run_dir``."""
     write_labels_yaml(run_dir / "labels.yaml", labels)
     write_labels_jsonl(run_dir / "labels.jsonl", labels)
     write_labels_yaml(run_dir / "detections.yaml", detections)
     atomic_write_text(run_dir / "tracks_mot.csv", mot_csv(labels))
     atomic_write_text(run_dir / "boxes_coco.json", json.dumps(coco_json(labels, image_size=image_size)))
+    if image_detections:
+        atomic_write_text(run_dir / "image_detections.jsonl", image_detections_jsonl(image_detections))
+
+
+def image_detections_jsonl(dets: Sequence[tuple[int, int, Any]]) -> str:
+    """The image detector's raw output per frame, as ``studio detect-image`` writes it, plus frame/stamp."""
+    lines = []
+    for frame, stamp, d in dets:
+        boxes = [
+            [round(float(v), 1) for v in b] + [round(float(s), 4)]
+            for b, s in zip(d.boxes, d.scores, strict=True)
+        ]
+        lines.append(
+            json.dumps(
+                {"frame": frame, "stamp_ns": stamp, "width": d.width, "height": d.height, "boxes": boxes},
+                separators=(",", ":"),
+            )
+        )
+    return "\n".join(lines) + ("\n" if lines else "")
 
 
 def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:

@@ -1,0 +1,150 @@
+"""Results table: simulated scenarios × methods × metrics, plus per-stage detection numbers and speed.
+
+    .venv/bin/python bench/run_table.py                      # static, moving, rooms; seed 1; full length
+    .venv/bin/python bench/run_table.py --seconds 30 --scenarios moving --seeds 1 2
+    .venv/bin/python bench/run_table.py --markdown docs/results.md
+
+Methods: ``studio`` (ours), ``thesis`` (the thesis method, same inputs), ``laser`` (ours, laser only),
+``camera`` (ours, camera only). Metrics at 0.2 m (the thesis radius). Recordings are simulated once into
+``bench/out/sim`` and reused; runs go to ``bench/out/runs``. Prints a markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from studio.commands.label import run_label
+from studio.evaluate import box_ap, evaluate
+from studio.labels import read_labels
+from studio.pipeline import LabelOptions
+from studio.sim import simulate
+
+OUT = Path(__file__).resolve().parent / "out"
+METHODS = {
+    "studio": LabelOptions(),
+    "thesis": LabelOptions(method="thesis"),
+    "laser": LabelOptions(sources="laser"),
+    "camera": LabelOptions(sources="camera"),
+}
+
+
+def recording(scenario: str, seconds: float | None, seed: int) -> Path:
+    name = f"{scenario}-{'full' if seconds is None else f'{seconds:g}s'}-seed{seed}"
+    out = OUT / "sim" / name
+    if not (out / "recording.mcap").exists():
+        t = time.perf_counter()
+        simulate(scenario, out=out, seconds=seconds, seed=seed)
+        print(f"simulated {name} in {time.perf_counter() - t:.0f} s", flush=True)
+    return out
+
+
+def image_ap(run: Path, gt_path: Path) -> float:
+    """AP@0.5 of the raw image detections against the ground-truth boxes (seam-aware IoU)."""
+    path = run / "image_detections.jsonl"
+    if not path.exists():
+        return math.nan
+    gt = {f.stamp_ns: f for f in read_labels(gt_path)}
+    g_boxes, p_boxes, p_scores, width = [], [], [], 1920
+    for line in path.read_text().splitlines():
+        d = json.loads(line)
+        f = gt.get(d["stamp_ns"])
+        if f is None:
+            continue
+        width = d["width"]
+        b = np.array(d["boxes"], dtype=float).reshape(-1, 5)
+        g_boxes.append(np.array([p.box for p in f.people if p.box is not None]).reshape(-1, 4))
+        p_boxes.append(b[:, :4])
+        p_scores.append(b[:, 4])
+    if not g_boxes:
+        return math.nan
+    return float(box_ap(g_boxes, p_boxes, p_scores, width=width, iou_threshold=0.5).ap)
+
+
+def run_one(rec: Path, method: str) -> dict[str, Any]:
+    run = OUT / "runs" / rec.name / method
+    info = run_label(
+        rec / "recording.mcap", rec / "rig.yaml", run, options=METHODS[method], write_rrd=False, quiet=True
+    )
+    gt = rec / "ground_truth.jsonl"
+    m = evaluate(run / "labels.jsonl", gt).metrics()
+    det = evaluate(run / "detections.yaml", rec / "ground_truth.yaml").metrics()
+    labels = read_labels(run / "labels.jsonl")
+    minutes = (labels.frames[-1].stamp_ns - labels.frames[0].stamp_ns) / 60e9 if len(labels) > 1 else math.nan
+    frames = info["counts"]["frames"]
+    return {
+        **{
+            k: m[k]
+            for k in ("precision", "recall", "f1", "mota", "idf1", "hota", "id_switches", "mt", "pt", "ml")
+        },
+        "idsw_per_min": m["id_switches"] / minutes if minutes else math.nan,
+        "det_f1": det["f1"],
+        "image_ap50": image_ap(run, gt),
+        "frames": frames,
+        "fps": frames / info["wall_s"],
+        "timings_s": info["timings_s"],
+    }
+
+
+def fmt(v: Any, pct: bool = False) -> str:
+    if isinstance(v, float) and math.isnan(v):
+        return "n/a"
+    if pct:
+        return f"{100 * v:.0f}"
+    return f"{v:.3f}" if isinstance(v, float) else str(v)
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    head = (
+        "| scenario | seed | method | F1 | MOTA | IDF1 | HOTA | IDSW/min | MT/PT/ML % | fused-stage F1 |"
+        " image AP@0.5 | frames/s |"
+    )
+    lines = [head, "|" + "---|" * 12]
+    for r in rows:
+        lines.append(
+            f"| {r['scenario']} | {r['seed']} | {r['method']} | {fmt(r['f1'])} | {fmt(r['mota'])} | "
+            f"{fmt(r['idf1'])} | {fmt(r['hota'])} | {r['idsw_per_min']:.2f} | "
+            f"{fmt(r['mt'], True)}/{fmt(r['pt'], True)}/{fmt(r['ml'], True)} | {fmt(r['det_f1'])} | "
+            f"{fmt(r['image_ap50'])} | {r['fps']:.1f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenarios", nargs="+", default=["static", "moving", "rooms"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1])
+    ap.add_argument("--seconds", type=float, default=None, help="shorten every scenario (default: full)")
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--markdown", type=Path, default=None, help="also write the table to this file")
+    args = ap.parse_args()
+    rows = []
+    for scenario in args.scenarios:
+        for seed in args.seeds:
+            rec = recording(scenario, args.seconds, seed)
+            for method in args.methods:
+                t = time.perf_counter()
+                r = {"scenario": scenario, "seed": seed, "method": method, **run_one(rec, method)}
+                rows.append(r)
+                print(
+                    f"{scenario} seed {seed} {method}: F1 {r['f1']:.3f} MOTA {r['mota']:.3f} "
+                    f"IDSW {r['id_switches']} ({time.perf_counter() - t:.0f} s)",
+                    flush=True,
+                )
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "results.json").write_text(json.dumps(rows, indent=2, default=float))
+    table = markdown(rows)
+    print()
+    print(table)
+    if args.markdown is not None:
+        args.markdown.write_text(table)
+
+
+if __name__ == "__main__":
+    main()
