@@ -74,6 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--laser-detector", default=None, help="detector name or a model file")
     p.add_argument("--no-rrd", action="store_true", help="do not write RUN/recording.rrd")
     p.add_argument("--export-frames", action="store_true", help="also write the labeled panoramas as JPEG")
+    p.add_argument(
+        "--ground-truth", default=None, help="ground truth to log beside the labels (compare view)"
+    )
 
     p = sub.add_parser("evaluate", help="compare labels with ground truth (P/R/F1, CLEAR MOT, IDF1, HOTA)")
     p.add_argument("pred", help="predicted labels (.yaml thesis format or .jsonl)")

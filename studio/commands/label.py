@@ -121,8 +121,16 @@ def run(args: argparse.Namespace) -> int:
         laser_detector=args.laser_detector,
         export_frames=args.export_frames,
     )
+    gt = Path(args.ground_truth) if args.ground_truth else None
+    if gt is not None and not gt.is_file():
+        raise StudioError(f"{gt}: no such ground-truth file")
     info = run_label(
-        Path(args.recording), Path(args.rig), Path(args.out), options=options, write_rrd=not args.no_rrd
+        Path(args.recording),
+        Path(args.rig),
+        Path(args.out),
+        options=options,
+        write_rrd=not args.no_rrd,
+        ground_truth=gt,
     )
     c = info["counts"]
     print(
