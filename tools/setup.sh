@@ -43,8 +43,19 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-pip=(.venv/bin/python -m pip install -q --disable-pip-version-check)
-"${pip[@]}" --upgrade pip >/dev/null
+# pip's own output (build warnings, index notes) goes to a log that is shown only when a step fails
+log=.venv/setup-pip.log
+: >"$log"
+pip_install() {
+  if ! .venv/bin/python -m pip install -q --disable-pip-version-check "$@" >>"$log" 2>&1; then
+    echo "setup.sh: 'pip install $*' failed; its output:" >&2
+    tail -n 40 "$log" >&2
+    exit 1
+  fi
+}
+pip=(pip_install)
+echo "setup.sh: installing Python packages into .venv (a few minutes the first time; log: $log)"
+"${pip[@]}" --upgrade pip
 # torch first, pinned: an open range would pull a multi-GB CUDA build.
 .venv/bin/python -c 'import torch' 2>/dev/null || "${pip[@]}" torch==2.13.0
 if [ "$dev" = 1 ]; then

@@ -53,5 +53,4 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nrun directory: {out}  (labels.yaml, labels.jsonl, boxes_coco.json, metrics.json, ...)")
     if info.get("rrd"):
         print(f"open it in the viewer:  studio view {out}   (or: studio view {out} --web)")
-    print(f"correct it by hand:     studio annotate {out}")
     return 0

@@ -1,1 +1,1 @@
-"""People detectors: ``studio.detect.image`` (panorama boxes + keypoints), ``studio.detect.laser`` (2D scans)."""
+"""People detectors: ``studio.detect.image`` (panorama boxes, keypoints) and ``studio.detect.laser``."""
