@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import importlib.util
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -41,6 +42,14 @@ def _positive_float(text: str) -> float:
     if not v > 0:
         raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
     return v
+
+
+def _help(command: str, text: str) -> str:
+    """The command's help line, marked when its module is not there yet."""
+    module, issue = _COMMANDS[command]
+    if importlib.util.find_spec(module) is None:
+        return f"{text} — not built yet (issue #{issue})"
+    return text
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -90,11 +99,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--web", action="store_true", help="serve the web viewer instead of the native one")
     p.add_argument("--screenshot", default=None, help="render headless and save a PNG screenshot")
 
-    p = sub.add_parser("annotate", help="correct ground truth in the browser (127.0.0.1)")
+    p = sub.add_parser("annotate", help=_help("annotate", "correct ground truth in the browser (127.0.0.1)"))
     p.add_argument("run", help="run directory")
     p.add_argument("--port", type=int, default=8765)
 
-    p = sub.add_parser("calibrate", help="laser ↔ panorama calibration")
+    p = sub.add_parser("calibrate", help=_help("calibrate", "laser ↔ panorama calibration"))
     csub = p.add_subparsers(dest="calib_command", metavar="SUBCOMMAND", required=True)
     c = csub.add_parser("extrinsics", help="fit the camera pose from x,y,z,u,v correspondences")
     c.add_argument("--correspondences", required=True, help="CSV with columns x,y,z,u,v")
