@@ -359,14 +359,19 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
 
 def track_all(
     frames: list[PerceptionFrame], fused: list[FrameResult], options: LabelOptions, *, has_camera: bool
-) -> list[LabelFrame]:
-    """Track in the odom frame and turn tracks into per-frame labels in the base frame."""
+) -> tuple[list[LabelFrame], list[FrameResult]]:
+    """Track in the odom frame and turn tracks into per-frame labels in the base frame.
+
+    Returns:
+        The labels, and the per-frame observations the final tracking pass used (``fused`` plus the
+        scan clusters recovered where tracks coasted).
+    """
     from studio.track.offline import track_offline
 
     observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
     result = track_offline(observations, config=options.tracking)
     if options.recover_radius > 0 and options.sources != "camera":
-        fused[:] = recover_missed(fused, result, options)
+        fused = recover_missed(fused, result, options)
         observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
         result = track_offline(observations, config=options.tracking)
     # camera confirmation and minimum duration, per track
@@ -430,7 +435,7 @@ def track_all(
                 )
             )
         labels.append(LabelFrame(fr.index, tuple(people), fr.stamp_ns, fr.robot_pose))
-    return labels
+    return labels, fused
 
 
 def label_recording(
@@ -474,7 +479,7 @@ def label_recording(
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts)
     t2 = time.perf_counter()
-    labels = track_all(frames, fused, opts, has_camera=camera is not None)
+    labels, fused = track_all(frames, fused, opts, has_camera=camera is not None)
     t3 = time.perf_counter()
     timings = dict(info["timings_s"])
     timings.update({"pass1_total": t1 - t0, "static_filter_and_fusion": t2 - t1, "tracking": t3 - t2})
