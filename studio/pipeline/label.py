@@ -181,11 +181,8 @@ def perceive(
                 laser, laser_z, points, origins, owner = _laser_in_base(frame, laser_detector)
             else:
                 laser, laser_z = None, np.zeros(0)
-                _, _, points, origins, owner = (
-                    _laser_in_base(frame, _NoDetector())
-                    if frame.scans
-                    else (None, None, np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
-                )
+                # scan points only (the viewer and the export still show the scans)
+                _, _, points, origins, owner = _laser_in_base(frame, _NoDetector())
             t3 = time.perf_counter()
             t_las += t3 - t2
             pf = PerceptionFrame(
