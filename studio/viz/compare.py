@@ -21,7 +21,7 @@ from studio.labels.base import LabelFrame, LabelSet
 from studio.viz import paths as ep
 from studio.viz.colors import ERROR_FN, ERROR_FP, GT_UNMATCHED, id_color
 from studio.viz.draw import vertical_strips
-from studio.viz.series import FloatArray, _odom_xy, _scalars, _times
+from studio.viz.series import FloatArray, _odom_xy, _scalars, _times, send_points, send_strips
 
 __all__ = ["log_ground_truth"]
 
@@ -109,38 +109,21 @@ def log_ground_truth(
             pan_col.extend(colour.get(gf.people[i].id, GT_UNMATCHED) for i in keep)
             pan_lab.extend(f"GT {gf.people[i].id}" for i in keep)
             pan_len.append(len(vs))
-    rec.log(f"{ep.ODOM}/ground_truth", rr.Points3D.from_fields(radii=[0.2], show_labels=False), static=True)
-    rec.send_columns(
-        f"{ep.ODOM}/ground_truth",
-        indexes=idx,
-        columns=rr.Points3D.columns(
-            positions=np.array(pos, np.float64).reshape(-1, 3),
-            colors=np.array(col, np.uint8).reshape(-1, 3),
-            labels=lab,
-        ).partition(lengths),
-    )
-    rec.log(f"{ep.ODOM}/errors", rr.Points3D.from_fields(radii=[0.28], show_labels=True), static=True)
-    rec.send_columns(
-        f"{ep.ODOM}/errors",
-        indexes=idx,
-        columns=rr.Points3D.columns(
-            positions=np.array(err_pos, np.float64).reshape(-1, 3),
-            colors=np.array(err_col, np.uint8).reshape(-1, 3),
-            labels=err_lab,
-        ).partition(err_len),
+    send_points(rec, f"{ep.ODOM}/ground_truth", idx, pos, col, lab, lengths, radius=0.2, show_labels=False)
+    send_points(
+        rec, f"{ep.ODOM}/errors", idx, err_pos, err_col, err_lab, err_len, radius=0.28, show_labels=True
     )
     if camera is not None:
-        rec.log(
+        send_strips(
+            rec,
             f"{ep.PANORAMA}/ground_truth",
-            rr.LineStrips2D.from_fields(radii=[6.0 * max(camera.width / 1920, 0.25)], show_labels=True),
-            static=True,
-        )
-        rec.send_columns(
-            f"{ep.PANORAMA}/ground_truth",
-            indexes=idx,
-            columns=rr.LineStrips2D.columns(
-                strips=pan, colors=np.array(pan_col, np.uint8).reshape(-1, 3), labels=pan_lab
-            ).partition(pan_len),
+            idx,
+            pan,
+            pan_col,
+            pan_len,
+            radius=6.0 * max(camera.width / 1920, 0.25),
+            labels=pan_lab,
+            image=True,
         )
 
     _eval_series(rec, rows, index, stamps)

@@ -55,6 +55,53 @@ def _scalars(
         )
 
 
+def send_points(
+    rec: rr.RecordingStream,
+    path: str,
+    idx: list[rr.TimeColumn],
+    positions: Any,
+    colors: Any,
+    labels: Sequence[str],
+    lengths: Sequence[int],
+    *,
+    radius: float,
+    show_labels: bool,
+) -> None:
+    """A whole series of 3D points, ``lengths[k]`` of them at time ``k`` (style logged as static)."""
+    rec.log(path, rr.Points3D.from_fields(radii=[radius], show_labels=show_labels), static=True)
+    rec.send_columns(
+        path,
+        indexes=idx,
+        columns=rr.Points3D.columns(
+            positions=np.asarray(positions, np.float64).reshape(-1, 3),
+            colors=np.array(colors, np.uint8).reshape(-1, 3),
+            labels=list(labels),
+        ).partition(lengths),
+    )
+
+
+def send_strips(
+    rec: rr.RecordingStream,
+    path: str,
+    idx: list[rr.TimeColumn],
+    strips: Any,
+    colors: Any,
+    lengths: Sequence[int],
+    *,
+    radius: float,
+    labels: Sequence[str] | None = None,
+    image: bool = False,
+) -> None:
+    """A whole series of line strips (2D on the panorama when ``image``, else 3D), ``lengths[k]`` at k."""
+    arch = rr.LineStrips2D if image else rr.LineStrips3D
+    style = arch.from_fields(radii=[radius], show_labels=True if labels is not None else None)
+    rec.log(path, style, static=True)
+    cols: dict[str, Any] = {"strips": strips, "colors": np.array(colors, np.uint8).reshape(-1, 3)}
+    if labels is not None:
+        cols["labels"] = list(labels)
+    rec.send_columns(path, indexes=idx, columns=arch.columns(**cols).partition(lengths))
+
+
 def _odom_xy(p: LabelPerson, pose: Any) -> tuple[float, float]:
     if p.x_odom is not None and p.y_odom is not None:
         return float(p.x_odom), float(p.y_odom)
@@ -125,24 +172,18 @@ def _fused(rec: rr.RecordingStream, frames: list[Any]) -> None:
             strips.extend(ellipse_strips(o.xy, o.cov, n_sigma=2.0, n=16, z=0.02))
     idx = _times([f.index for f in frames], [f.stamp_ns for f in frames])
     people = f"{ep.ROBOT}/people"
-    rec.log(people, rr.Points3D.from_fields(radii=[0.08], show_labels=False), static=True)
-    rec.send_columns(
+    send_points(
+        rec,
         people,
-        indexes=idx,
-        columns=rr.Points3D.columns(
-            positions=np.concatenate(pos) if pos else np.zeros((0, 3)),
-            colors=np.array(col, np.uint8).reshape(-1, 3),
-            labels=lab,
-        ).partition(lengths),
+        idx,
+        np.concatenate(pos) if pos else np.zeros((0, 3)),
+        col,
+        lab,
+        lengths,
+        radius=0.08,
+        show_labels=False,
     )
-    rec.log(f"{people}/covariance", rr.LineStrips3D.from_fields(radii=[0.006]), static=True)
-    rec.send_columns(
-        f"{people}/covariance",
-        indexes=idx,
-        columns=rr.LineStrips3D.columns(
-            strips=strips, colors=np.array(s_col, np.uint8).reshape(-1, 3)
-        ).partition(s_len),
-    )
+    send_strips(rec, f"{people}/covariance", idx, strips, s_col, s_len, radius=0.006)
 
 
 def _tracks(
@@ -192,38 +233,19 @@ def _tracks(
             pan_lab.extend(str(lf.people[i].id) for i in keep)
             pan_len.append(len(vs))
     idx = _times(index, stamps)
-    rec.log(f"{ep.ODOM}/tracks", rr.Points3D.from_fields(radii=[0.12], show_labels=True), static=True)
-    rec.send_columns(
-        f"{ep.ODOM}/tracks",
-        indexes=idx,
-        columns=rr.Points3D.columns(
-            positions=np.array(pos, np.float64).reshape(-1, 3),
-            colors=np.array(col, np.uint8).reshape(-1, 3),
-            labels=lab,
-        ).partition(lengths),
-    )
-    rec.log(f"{ep.ODOM}/trails", rr.LineStrips3D.from_fields(radii=[0.02]), static=True)
-    rec.send_columns(
-        f"{ep.ODOM}/trails",
-        indexes=idx,
-        columns=rr.LineStrips3D.columns(
-            strips=strips, colors=np.array(s_col, np.uint8).reshape(-1, 3)
-        ).partition(s_len),
-    )
+    send_points(rec, f"{ep.ODOM}/tracks", idx, pos, col, lab, lengths, radius=0.12, show_labels=True)
+    send_strips(rec, f"{ep.ODOM}/trails", idx, strips, s_col, s_len, radius=0.02)
     if camera is not None:
-        rec.log(
+        send_strips(
+            rec,
             f"{ep.PANORAMA}/tracks",
-            rr.LineStrips2D.from_fields(radii=[3.0 * max(camera.width / 1920, 0.25)], show_labels=True),
-            static=True,
-        )
-        rec.send_columns(
-            f"{ep.PANORAMA}/tracks",
-            indexes=idx,
-            columns=rr.LineStrips2D.columns(
-                strips=pan_strips,
-                colors=np.array(pan_col, np.uint8).reshape(-1, 3),
-                labels=pan_lab,
-            ).partition(pan_len),
+            idx,
+            pan_strips,
+            pan_col,
+            pan_len,
+            radius=3.0 * max(camera.width / 1920, 0.25),
+            labels=pan_lab,
+            image=True,
         )
 
 
