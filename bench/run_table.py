@@ -3,7 +3,9 @@
     .venv/bin/python bench/run_table.py                      # static, moving, rooms; seed 1; full length
     .venv/bin/python bench/run_table.py --seconds 30 --scenarios moving --seeds 1 2
     .venv/bin/python bench/run_table.py --markdown docs/results.md
+    .venv/bin/python bench/run_table.py --reuse thesis laser   # keep finished runs of unchanged methods
 
+Each run is a child process, so its peak resident memory (``peak MB``) is its own.
 Methods: ``studio`` (ours), ``thesis`` (the thesis method, same inputs), ``laser`` (ours, laser only),
 ``camera`` (ours, camera only). Metrics at 0.2 m (the thesis radius). Recordings are simulated once into
 ``bench/out/sim`` and reused; runs go to ``bench/out/runs``. Prints a markdown table.
@@ -14,6 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -68,6 +73,7 @@ def image_ap(run: Path, gt_path: Path) -> float:
 
 
 def run_one(rec: Path, method: str) -> dict[str, Any]:
+    """Label ``rec`` with ``method`` in this process and measure it (the child side of :func:`measure`)."""
     run = OUT / "runs" / rec.name / method
     info = run_label(
         rec / "recording.mcap", rec / "rig.yaml", run, options=METHODS[method], write_rrd=False, quiet=True
@@ -92,6 +98,24 @@ def run_one(rec: Path, method: str) -> dict[str, Any]:
     }
 
 
+def measure(rec: Path, method: str, *, reuse: bool) -> dict[str, Any]:
+    """Run :func:`run_one` in a child process; add its peak RSS (MB). Reuses a stored result if asked."""
+    stored = OUT / "runs" / rec.name / f"{method}.json"
+    if reuse and stored.exists():
+        return dict(json.loads(stored.read_text()), reused=True)
+    cmd = [sys.executable, __file__, "--child", str(rec), method]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    out = proc.stdout.read() if proc.stdout else ""
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"{rec.name} {method}: the labeling child failed (exit {proc.returncode})")
+    r = json.loads(out.strip().splitlines()[-1])
+    r["peak_mb"] = usage.ru_maxrss / 1024  # Linux: KiB
+    stored.write_text(json.dumps(r, indent=2, default=float))
+    return r
+
+
 def fmt(v: Any, pct: bool = False) -> str:
     if isinstance(v, float) and math.isnan(v):
         return "n/a"
@@ -103,17 +127,33 @@ def fmt(v: Any, pct: bool = False) -> str:
 def markdown(rows: list[dict[str, Any]]) -> str:
     head = (
         "| scenario | seed | method | F1 | MOTA | IDF1 | HOTA | IDSW/min | MT/PT/ML % | fused-stage F1 |"
-        " image AP@0.5 | frames/s |"
+        " image AP@0.5 | frames/s | peak MB |"
     )
-    lines = [head, "|" + "---|" * 12]
+    lines = [head, "|" + "---|" * 13]
     for r in rows:
         lines.append(
             f"| {r['scenario']} | {r['seed']} | {r['method']} | {fmt(r['f1'])} | {fmt(r['mota'])} | "
             f"{fmt(r['idf1'])} | {fmt(r['hota'])} | {r['idsw_per_min']:.2f} | "
             f"{fmt(r['mt'], True)}/{fmt(r['pt'], True)}/{fmt(r['ml'], True)} | {fmt(r['det_f1'])} | "
-            f"{fmt(r['image_ap50'])} | {r['fps']:.1f} |"
+            f"{fmt(r['image_ap50'])} | {r['fps']:.1f} | {r.get('peak_mb', math.nan):.0f} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def seed_means(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per scenario × method with the mean over seeds (seed column "mean of N")."""
+    keys = ("f1", "mota", "idf1", "hota", "idsw_per_min", "mt", "pt", "ml", "det_f1", "image_ap50", "fps")
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["scenario"], r["method"]), []).append(r)
+    out = []
+    for (scenario, method), rs in groups.items():
+        if len(rs) < 2:
+            continue
+        m = {k: float(np.mean([r[k] for r in rs])) for k in keys}
+        m["peak_mb"] = float(max(r.get("peak_mb", math.nan) for r in rs))
+        out.append({"scenario": scenario, "seed": f"mean of {len(rs)}", "method": method, **m})
+    return out
 
 
 def main() -> None:
@@ -123,14 +163,26 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=None, help="shorten every scenario (default: full)")
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--markdown", type=Path, default=None, help="also write the table to this file")
+    ap.add_argument(
+        "--reuse", nargs="*", default=[], choices=list(METHODS), help="methods whose stored runs to keep"
+    )
+    ap.add_argument("--child", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child is not None:
+        print(json.dumps(run_one(Path(args.child[0]), args.child[1]), default=float))
+        return
     rows = []
     for scenario in args.scenarios:
         for seed in args.seeds:
             rec = recording(scenario, args.seconds, seed)
             for method in args.methods:
                 t = time.perf_counter()
-                r = {"scenario": scenario, "seed": seed, "method": method, **run_one(rec, method)}
+                r = {
+                    "scenario": scenario,
+                    "seed": seed,
+                    "method": method,
+                    **measure(rec, method, reuse=method in args.reuse),
+                }
                 rows.append(r)
                 print(
                     f"{scenario} seed {seed} {method}: F1 {r['f1']:.3f} MOTA {r['mota']:.3f} "
@@ -139,7 +191,7 @@ def main() -> None:
                 )
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "results.json").write_text(json.dumps(rows, indent=2, default=float))
-    table = markdown(rows)
+    table = markdown(rows + seed_means(rows))
     print()
     print(table)
     if args.markdown is not None:
