@@ -220,7 +220,9 @@ def parse_rig(data: Any, *, source: str = "rig") -> Rig:
     c = _Checker(source)
     if data is None:
         raise c.fail("", "is empty")
-    top = c.mapping(data, "", ("base_frame", "odometry", "camera", "lasers", "sync"), ("base_frame",))
+    # `calibration`: the provenance block `studio calibrate` writes; informational, not read here
+    keys = ("base_frame", "odometry", "camera", "lasers", "sync", "calibration")
+    top = c.mapping(data, "", keys, ("base_frame",))
     base_frame = _norm_frame(c.string(top["base_frame"], "base_frame"))
     if not base_frame:
         raise c.fail("base_frame", "must name a frame")

@@ -125,3 +125,12 @@ def test_bad_rigs(tmp_path: Path, text: str, match: str) -> None:
 def test_missing_rig_file(tmp_path: Path) -> None:
     with pytest.raises(RigError, match="rig file not found"):
         load_rig(tmp_path / "nope.yaml")
+
+
+def test_calibration_block_of_studio_calibrate_is_accepted(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text(DESIGN_EXAMPLE + "calibration: {method: extrinsics, n: 40, col_px_mean: 1.2}\n")
+    assert load_rig(p).camera is not None
+    p.write_text(DESIGN_EXAMPLE + "calibratoin: {}\n")
+    with pytest.raises(RigError, match="calibratoin"):
+        load_rig(p)
