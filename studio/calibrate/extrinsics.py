@@ -1,0 +1,575 @@
+"""The 360° camera's pose from laser ↔ panorama correspondences (``x, y, z, u, v`` rows).
+
+Model: the panorama is an exact central spherical camera (:mod:`studio.geometry.equirect`); a base-frame
+point ``p`` is seen at the pixel of the direction ``R^T (p - t)`` where ``(R, t)`` is the camera pose
+``T_base_cam``. The fit minimises pixel residuals ``(du, dv)`` — ``du`` wrapped across the seam into
+``[-W/2, W/2)`` — with :func:`scipy.optimize.least_squares` and a robust loss:
+
+1. *initialisation without a guess*: camera centres ``(0, 0, h)`` for a few heights ``h``, each with the
+   rotation that best aligns the observed rays with the directions to the points (Wahba / SVD), plus a yaw
+   grid of level poses; the best few by median residual are refined with a wide robust loss;
+2. *outlier rejection*: a point is an outlier when its residual norm exceeds ``max(3.5·σ, floor)``
+   (σ from the median residual, floor ``max(2 px, W/2000)`` or ``outlier_px``), then a refit on the
+   inliers, repeated until the inlier set settles;
+3. the rotation is a rotation vector about the current estimate (no singularity anywhere); with fixed
+   rotation parameters it is roll/pitch/yaw so that single angles can be held.
+
+When every ``z`` is equal (the ``z = 0`` when-unknown convention) the fit is still exact: the camera
+height is then relative to the targets' plane and row errors absorb the target's true height.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from studio.errors import StudioError
+from studio.geometry.equirect import EquirectCamera
+from studio.geometry.se import Pose3, rot_from_rpy
+
+__all__ = [
+    "POSE_PARAMS",
+    "CalibrationError",
+    "CrossValidation",
+    "ExtrinsicsFit",
+    "check_correspondences",
+    "cross_validate",
+    "fit_extrinsics",
+    "pixel_residuals",
+    "project_points",
+]
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+POSE_PARAMS = ("x", "y", "z", "roll", "pitch", "yaw")
+_MIN_POINTS = 6  # rows needed for a fit from user input
+_MIN_TRAIN = 5  # rows a cross-validation training fold needs
+_OUTLIER_SIGMAS = 3.5
+_RAYLEIGH_MEDIAN = 1.1774  # median of a 2-D isotropic Gaussian residual norm, in σ
+
+
+class CalibrationError(StudioError):
+    """Calibration input that cannot give a pose; the message names the problem and the rows."""
+
+
+# ---------------------------------------------------------------------------------------- input checks
+def _rows(idx: ArrayLike, labels: Sequence[str] | None, limit: int = 8) -> str:
+    ids = [int(i) for i in np.asarray(idx).reshape(-1)]
+    names = [labels[i] if labels is not None else f"row {i + 1}" for i in ids[:limit]]
+    more = f" and {len(ids) - limit} more" if len(ids) > limit else ""
+    return ", ".join(names) + more
+
+
+def _image_size(image_size: Any) -> tuple[int, int]:
+    try:
+        w, h = (int(image_size[0]), int(image_size[1]))
+    except (TypeError, ValueError, IndexError):
+        raise CalibrationError(f"image size must be (width, height) in px, got {image_size!r}") from None
+    if w <= 0 or h <= 0:
+        raise CalibrationError(f"image size must be positive, got {w}×{h}")
+    return w, h
+
+
+def check_correspondences(
+    xyz: ArrayLike,
+    uv: ArrayLike,
+    *,
+    image_size: tuple[int, int],
+    labels: Sequence[str] | None = None,
+    min_points: int = _MIN_POINTS,
+) -> tuple[FloatArray, FloatArray]:
+    """Validate correspondences before a fit.
+
+    Args:
+        xyz: ``(N, 3)`` points in the base/laser frame, metres.
+        uv: ``(N, 2)`` their panorama pixels, px from the left/top edge.
+        image_size: panorama ``(W, H)``, px.
+        labels: how to name row ``i`` in messages (e.g. ``"line 7"``); default ``"row i+1"``.
+        min_points: fewest rows accepted.
+
+    Returns:
+        ``xyz`` and ``uv`` as float64 arrays.
+
+    Raises:
+        CalibrationError: wrong shapes, NaN/inf, pixels outside ``[0, W) × [0, H)``, duplicated rows, fewer
+            than ``min_points`` rows, or all points on one line (the message names the rows).
+    """
+    W, H = _image_size(image_size)
+    p = np.asarray(xyz, dtype=np.float64)
+    q = np.asarray(uv, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise CalibrationError(f"points must have shape (N, 3) (x, y, z), got {p.shape}")
+    if q.ndim != 2 or q.shape[1] != 2:
+        raise CalibrationError(f"pixels must have shape (N, 2) (u, v), got {q.shape}")
+    if len(p) != len(q):
+        raise CalibrationError(f"{len(p)} points but {len(q)} pixels")
+    bad = ~(np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1))
+    if bad.any():
+        raise CalibrationError(f"NaN or infinite values in {_rows(np.flatnonzero(bad), labels)}")
+    outside = (q[:, 0] < 0) | (q[:, 0] >= W) | (q[:, 1] < 0) | (q[:, 1] >= H)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise CalibrationError(
+            f"pixels outside the {W}×{H} image (u in [0, {W}), v in [0, {H})) in "
+            f"{_rows(np.flatnonzero(outside), labels)} (first: u={q[i, 0]:g}, v={q[i, 1]:g}); "
+            "is --image-size right?"
+        )
+    if len(p) < min_points:
+        raise CalibrationError(f"a camera pose needs at least {min_points} correspondences, got {len(p)}")
+    rows = np.concatenate([p, q], axis=1)
+    _, first, counts = np.unique(rows, axis=0, return_index=True, return_counts=True)
+    if (counts > 1).any():
+        dup_groups = []
+        for f in first[counts > 1][:4]:
+            same = np.flatnonzero((rows == rows[f]).all(axis=1))
+            dup_groups.append(_rows(same, labels))
+        raise CalibrationError(f"duplicated correspondences: {'; '.join(dup_groups)} (remove the copies)")
+    centred = p - p.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)
+    if s[1] / math.sqrt(len(p)) < 1e-4:
+        raise CalibrationError(
+            f"all {len(p)} points lie on one line (or at one place): the camera's rotation about it is "
+            "undetermined; add points in other directions"
+        )
+    return p, q
+
+
+# ---------------------------------------------------------------------------------------- projection
+def project_points(pose: Pose3, xyz: ArrayLike, *, image_size: tuple[int, int]) -> FloatArray:
+    """Panorama pixels of base-frame points.
+
+    Args:
+        pose: camera pose ``T_base_cam``.
+        xyz: ``(N, 3)`` points, metres, base frame.
+        image_size: ``(W, H)``, px.
+
+    Returns:
+        ``(N, 2)`` ``u, v`` px (u in ``[0, W)``; NaN for a point at the camera centre).
+    """
+    W, H = _image_size(image_size)
+    uv, _ = EquirectCamera(W, H, pose).project(np.asarray(xyz, dtype=np.float64).reshape(-1, 3))
+    return uv
+
+
+def _angles(pose_R: FloatArray, pose_t: FloatArray, xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+    pc = (xyz - pose_t) @ pose_R
+    return np.arctan2(pc[:, 1], pc[:, 0]), np.arctan2(pc[:, 2], np.hypot(pc[:, 0], pc[:, 1]))
+
+
+def _res(R: FloatArray, t: FloatArray, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> FloatArray:
+    az, el = _angles(R, t, xyz)
+    u = (0.5 - az / (2 * np.pi)) * W
+    v = (0.5 - el / np.pi) * H
+    du = np.mod(u - uv[:, 0] + W / 2.0, W) - W / 2.0
+    return np.stack([du, v - uv[:, 1]], axis=1)
+
+
+def pixel_residuals(pose: Pose3, xyz: ArrayLike, uv: ArrayLike, *, image_size: tuple[int, int]) -> FloatArray:
+    """Projected minus observed pixels, ``(N, 2)`` px; the column part is wrapped into ``[-W/2, W/2)``."""
+    W, H = _image_size(image_size)
+    p = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    return _res(pose.R, pose.t, p, q, W, H)
+
+
+def _angular_error_deg(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> FloatArray:
+    cam = EquirectCamera(W, H, pose)
+    obs = cam.bearing_base(uv)
+    d = xyz - pose.t
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    d = d / np.where(n > 0, n, 1.0)
+    cross = np.linalg.norm(np.cross(obs, d), axis=1)
+    return np.degrees(np.arctan2(cross, np.sum(obs * d, axis=1)))  # exact also for tiny angles
+
+
+# ---------------------------------------------------------------------------------------- results
+@dataclass(frozen=True, eq=False)
+class ExtrinsicsFit:
+    """A fitted camera pose.
+
+    Attributes:
+        pose: ``T_base_cam`` (the rig camera pose convention of :mod:`studio.geometry.equirect`).
+        inliers: ``(N,)`` bool, the points the final fit used.
+        residual_px: ``(N, 2)`` projected − observed ``(du, dv)`` px, du wrapped into ``[-W/2, W/2)``.
+        ang_err_deg: ``(N,)`` angle between observed and predicted rays, degrees.
+        cost: final robust cost of the inliers (scipy's ``0.5·Σρ``), px².
+        n_iter: function evaluations of the final refinement.
+        image_size: ``(W, H)`` px.
+        threshold_px: residual norm above which a point was rejected, px.
+        sigma_px: robust noise scale of the inliers' residual norms, px.
+        z_constant: every point has the same ``z`` (camera height is relative to that plane).
+    """
+
+    pose: Pose3
+    inliers: BoolArray
+    residual_px: FloatArray
+    ang_err_deg: FloatArray
+    cost: float
+    n_iter: int
+    image_size: tuple[int, int] = (0, 0)
+    threshold_px: float = math.nan
+    sigma_px: float = math.nan
+    z_constant: bool = False
+
+    def __post_init__(self) -> None:
+        n = len(self.inliers)
+        if self.residual_px.shape != (n, 2) or self.ang_err_deg.shape != (n,):
+            raise ValueError("ExtrinsicsFit arrays must have N, (N, 2) and (N,) rows")
+
+    @property
+    def n(self) -> int:
+        return len(self.inliers)
+
+    @property
+    def n_outliers(self) -> int:
+        return int((~self.inliers).sum())
+
+
+@dataclass(frozen=True, eq=False)
+class CrossValidation:
+    """K-fold held-out errors: each point's error under the pose fitted without its fold.
+
+    Attributes:
+        fit: the fit on all points (its ``inliers`` decide which points the statistics cover).
+        col_err_px: ``(N,)`` held-out signed column error (wrapped), px.
+        row_err_px: ``(N,)`` held-out signed row error, px.
+        ang_err_deg: ``(N,)`` held-out angular error, degrees.
+        fold: ``(N,)`` fold index of each point.
+        fold_poses: the pose fitted on each training split.
+    """
+
+    fit: ExtrinsicsFit
+    col_err_px: FloatArray
+    row_err_px: FloatArray
+    ang_err_deg: FloatArray
+    fold: NDArray[np.int64]
+    fold_poses: tuple[Pose3, ...] = field(default=())
+
+    @property
+    def folds(self) -> int:
+        return len(self.fold_poses)
+
+    def pose_spread(self) -> tuple[float, float]:
+        """Largest distance (m) and rotation angle (deg) of a fold's pose from the full fit's."""
+        if not self.fold_poses:
+            return 0.0, 0.0
+        d = [float(np.linalg.norm(p.t - self.fit.pose.t)) for p in self.fold_poses]
+        a = [
+            float(np.degrees(np.linalg.norm(Rotation.from_matrix(self.fit.pose.R.T @ p.R).as_rotvec())))
+            for p in self.fold_poses
+        ]
+        return max(d), max(a)
+
+    def to_json(self) -> dict[str, Any]:
+        """DESIGN.md keys (over the full fit's inliers) plus extras (``*_all``: every point)."""
+        m = self.fit.inliers
+        col, row, ang = np.abs(self.col_err_px), np.abs(self.row_err_px), self.ang_err_deg
+
+        def stat(a: FloatArray, f: Any) -> float:
+            return round(float(f(a)), 4) if len(a) else math.nan
+
+        spread_m, spread_deg = self.pose_spread()
+        return {
+            "col_px_mean": stat(col[m], np.mean),
+            "col_px_median": stat(col[m], np.median),
+            "col_px_p90": stat(col[m], lambda a: np.percentile(a, 90)),
+            "row_px_mean": stat(row[m], np.mean),
+            "row_px_median": stat(row[m], np.median),
+            "ang_deg_mean": stat(ang[m], np.mean),
+            "n": len(m),
+            "n_outliers": int((~m).sum()),
+            "row_px_p90": stat(row[m], lambda a: np.percentile(a, 90)),
+            "ang_deg_median": stat(ang[m], np.median),
+            "col_px_mean_all": stat(col, np.mean),
+            "col_px_median_all": stat(col, np.median),
+            "folds": self.folds,
+            "fold_spread_m": round(spread_m, 5),
+            "fold_spread_deg": round(spread_deg, 4),
+            "z_constant": bool(self.fit.z_constant),
+        }
+
+    def table(self) -> str:
+        """A readable summary of the cross-validated errors."""
+        j = self.to_json()
+        head = f"held-out error ({j['folds']}-fold CV)"
+        lines = [
+            f"{head:<30} {'mean':>8} {'median':>8} {'p90':>8}",
+            f"{'column (px)':<30} {j['col_px_mean']:>8.2f} {j['col_px_median']:>8.2f} "
+            f"{j['col_px_p90']:>8.2f}",
+            f"{'row (px)':<30} {j['row_px_mean']:>8.2f} {j['row_px_median']:>8.2f} {j['row_px_p90']:>8.2f}",
+            f"{'angle (deg)':<30} {j['ang_deg_mean']:>8.3f} {j['ang_deg_median']:>8.3f} {'':>8}",
+            f"{'column, all points (px)':<30} {j['col_px_mean_all']:>8.2f} {j['col_px_median_all']:>8.2f}",
+            f"points {j['n']}, outliers rejected {j['n_outliers']}, "
+            f"fold pose spread {j['fold_spread_m'] * 100:.1f} cm / {j['fold_spread_deg']:.2f}°",
+        ]
+        if j["z_constant"]:
+            lines.append(
+                "all points have the same z: the camera z is relative to that plane, and row errors "
+                "include the target's true height"
+            )
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------- fitting
+class _Model:
+    """Maps a free-parameter vector to a pose (rotation vector about R0, or roll/pitch/yaw when held)."""
+
+    def __init__(self, start: Pose3, fixed: Sequence[str]) -> None:
+        unknown = [f for f in fixed if f not in POSE_PARAMS]
+        if unknown:
+            raise CalibrationError(f"unknown fixed pose parameter(s) {unknown}; expected {POSE_PARAMS}")
+        self.fixed = set(fixed)
+        self.rpy_mode = bool(self.fixed & {"roll", "pitch", "yaw"})
+        self.R0 = start.R
+        rot0 = np.array(start.rpy()) if self.rpy_mode else np.zeros(3)
+        self.full0 = np.concatenate([start.t, rot0])
+        self.free = np.array([k not in self.fixed for k in POSE_PARAMS])
+
+    def x0(self) -> FloatArray:
+        return self.full0[self.free].copy()
+
+    def pose_parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        full = self.full0.copy()
+        full[self.free] = x
+        if self.rpy_mode:
+            R = rot_from_rpy(*full[3:])
+        else:
+            R = self.R0 @ Rotation.from_rotvec(full[3:]).as_matrix()
+        return R, full[:3]
+
+
+def _refine(
+    start: Pose3,
+    xyz: FloatArray,
+    uv: FloatArray,
+    W: int,
+    H: int,
+    *,
+    fixed: Sequence[str],
+    loss: str,
+    f_scale: float,
+    max_nfev: int,
+    tol: float = 1e-12,
+) -> tuple[Pose3, float, int]:
+    model = _Model(start, fixed)
+    x0 = model.x0()
+    if x0.size == 0:
+        return start, 0.0, 0
+
+    def fun(x: FloatArray) -> FloatArray:
+        R, t = model.pose_parts(x)
+        return _res(R, t, xyz, uv, W, H).ravel()
+
+    try:
+        sol = least_squares(
+            fun,
+            x0,
+            loss=loss,
+            f_scale=f_scale,
+            max_nfev=max_nfev,
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+        )
+    except ValueError as exc:
+        raise CalibrationError(f"least-squares fit failed: {exc}") from None
+    R, t = model.pose_parts(sol.x)
+    return Pose3(R, t), float(sol.cost), int(sol.nfev)
+
+
+def _wahba(obs: FloatArray, tgt: FloatArray) -> FloatArray:
+    """Rotation R minimising Σ |R obs_i − tgt_i|² (both (N, 3) unit vectors)."""
+    U, _, Vt = np.linalg.svd(tgt.T @ obs)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    return U @ D @ Vt
+
+
+def _candidates(xyz: FloatArray, uv: FloatArray, W: int, H: int) -> list[Pose3]:
+    rays = EquirectCamera(W, H).rays(uv)
+    zc = float(np.median(xyz[:, 2]))
+    heights = zc + np.array([-1.0, -0.3, 0.0, 0.3, 0.6, 1.0, 1.5, 2.0])
+    out: list[Pose3] = []
+    for h in heights:
+        c = np.array([0.0, 0.0, h])
+        d = xyz - c
+        n = np.linalg.norm(d, axis=1, keepdims=True)
+        if np.any(n < 1e-9):
+            continue
+        out.append(Pose3(_wahba(rays, d / n), c))
+        for yaw in np.linspace(-np.pi, np.pi, 12, endpoint=False):
+            out.append(Pose3.from_xyz_rpy(0.0, 0.0, float(h), 0.0, 0.0, float(yaw)))
+    return out
+
+
+def _median_norm(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> float:
+    r = np.linalg.norm(_res(pose.R, pose.t, xyz, uv, W, H), axis=1)
+    return float(np.nanmedian(r)) if np.isfinite(r).any() else math.inf
+
+
+def fit_extrinsics(
+    xyz: ArrayLike,
+    uv: ArrayLike,
+    *,
+    image_size: tuple[int, int],
+    initial: Pose3 | None = None,
+    loss: str = "soft_l1",
+    outlier_px: float | None = None,
+    fixed: Sequence[str] = (),
+    labels: Sequence[str] | None = None,
+    min_points: int = _MIN_POINTS,
+) -> ExtrinsicsFit:
+    """Fit the camera pose ``T_base_cam`` to correspondences.
+
+    Args:
+        xyz: ``(N, 3)`` points in the laser/base frame, metres (z above the laser plane; 0 when unknown).
+        uv: ``(N, 2)`` their panorama pixels, px from the left/top edge.
+        image_size: panorama ``(W, H)``, px.
+        initial: a starting pose (also the value of ``fixed`` parameters); None: found automatically.
+        loss: scipy robust loss (``linear``, ``soft_l1``, ``huber``, ``cauchy``, ``arctan``).
+        outlier_px: reject points whose residual norm exceeds this, px (default: ``max(3.5·σ, W/2000, 2)``).
+        fixed: pose parameters held at ``initial``: any of ``x y z roll pitch yaw``.
+        labels: names of the rows in error messages (e.g. CSV line numbers).
+        min_points: fewest rows accepted.
+
+    Returns:
+        The :class:`ExtrinsicsFit`.
+
+    Raises:
+        CalibrationError: degenerate input (see :func:`check_correspondences`), fixed parameters without
+            ``initial``, or no pose that agrees with enough points.
+    """
+    W, H = _image_size(image_size)
+    p, q = check_correspondences(xyz, uv, image_size=(W, H), labels=labels, min_points=min_points)
+    if loss not in ("linear", "soft_l1", "huber", "cauchy", "arctan"):
+        raise CalibrationError(f"unknown loss '{loss}' (linear, soft_l1, huber, cauchy, arctan)")
+    if fixed and initial is None:
+        raise CalibrationError(f"fixed pose parameters {list(fixed)} need an initial pose")
+    _Model(Pose3.identity(), fixed)  # validates the names
+    if outlier_px is not None and not outlier_px > 0:
+        raise CalibrationError(f"outlier threshold must be positive, got {outlier_px}")
+    floor = max(2.0, W / 2000.0)
+    wide = max(floor, W / 200.0)
+
+    # 1. robust start
+    if initial is not None and fixed:
+        best, _, _ = _refine(initial, p, q, W, H, fixed=fixed, loss="soft_l1", f_scale=wide, max_nfev=200)
+    else:
+        cands = _candidates(p, q, W, H) + ([initial] if initial is not None else [])
+        scored = sorted(cands, key=lambda c: _median_norm(c, p, q, W, H))
+        tried = []
+        for c in scored[:4] + ([initial] if initial is not None else []):
+            pose, _, _ = _refine(
+                c, p, q, W, H, fixed=(), loss="soft_l1", f_scale=wide, max_nfev=100, tol=1e-8
+            )
+            tried.append((_median_norm(pose, p, q, W, H), pose))
+        best = min(tried, key=lambda a: a[0])[1]
+
+    # 2. outlier rejection + refit until the inlier set settles
+    inl = np.ones(len(p), dtype=bool)
+    sigma = math.nan
+    thr = math.nan
+    cost, nfev = 0.0, 0
+    for _ in range(6):
+        r = np.linalg.norm(_res(best.R, best.t, p, q, W, H), axis=1)
+        sigma = float(np.median(r[inl])) / _RAYLEIGH_MEDIAN
+        thr = float(outlier_px) if outlier_px is not None else max(_OUTLIER_SIGMAS * sigma, floor)
+        new = r <= thr
+        need = max(3, min(min_points, _MIN_TRAIN))
+        if new.sum() < need:
+            raise CalibrationError(
+                f"no camera pose agrees with enough points: only {int(new.sum())} of {len(p)} are within "
+                f"{thr:.1f} px of the best pose (are u/v columns swapped, or --image-size wrong?)"
+            )
+        fs = max(2.0 * sigma, 0.5) if outlier_px is None else max(float(outlier_px) / 3.0, 0.5)
+        best, cost, nfev = _refine(
+            best, p[new], q[new], W, H, fixed=fixed, loss=loss, f_scale=fs, max_nfev=300
+        )
+        if np.array_equal(new, inl):
+            break
+        inl = new
+    res = _res(best.R, best.t, p, q, W, H)
+    r = np.linalg.norm(res, axis=1)
+    sigma = float(np.median(r[inl])) / _RAYLEIGH_MEDIAN
+    return ExtrinsicsFit(
+        pose=best,
+        inliers=inl,
+        residual_px=res,
+        ang_err_deg=_angular_error_deg(best, p, q, W, H),
+        cost=cost,
+        n_iter=nfev,
+        image_size=(W, H),
+        threshold_px=thr,
+        sigma_px=sigma,
+        z_constant=bool(np.ptp(p[:, 2]) < 1e-9),
+    )
+
+
+def cross_validate(
+    xyz: ArrayLike,
+    uv: ArrayLike,
+    *,
+    image_size: tuple[int, int],
+    folds: int = 5,
+    seed: int = 0,
+    labels: Sequence[str] | None = None,
+    **fit_kwargs: Any,
+) -> CrossValidation:
+    """K-fold cross-validation of :func:`fit_extrinsics`.
+
+    Each point's error comes from the pose fitted on the other folds (each training fit does its own
+    initialisation and outlier rejection). With fewer points than folds it is leave-one-out.
+
+    Args:
+        xyz: ``(N, 3)`` metres; uv: ``(N, 2)`` px; image_size: ``(W, H)`` px.
+        folds: K ≥ 2.
+        seed: shuffles the fold assignment.
+        labels: names of the rows in error messages.
+        **fit_kwargs: passed to :func:`fit_extrinsics`.
+
+    Raises:
+        CalibrationError: bad input, ``folds < 2``, or a training fold that cannot be fitted.
+    """
+    W, H = _image_size(image_size)
+    if folds < 2:
+        raise CalibrationError(f"cross-validation needs at least 2 folds, got {folds}")
+    full = fit_extrinsics(xyz, uv, image_size=(W, H), labels=labels, **fit_kwargs)
+    p = np.asarray(xyz, dtype=np.float64)
+    q = np.asarray(uv, dtype=np.float64)
+    n = len(p)
+    k = min(int(folds), n)
+    while k > 2 and n - math.ceil(n / k) < _MIN_TRAIN:
+        k -= 1
+    if n - math.ceil(n / k) < _MIN_TRAIN:
+        k = n  # leave-one-out keeps the most training points
+    perm = np.random.default_rng(seed).permutation(n)
+    fold = np.empty(n, dtype=np.int64)
+    fold[perm] = np.arange(n) % k
+    col = np.full(n, np.nan)
+    row = np.full(n, np.nan)
+    ang = np.full(n, np.nan)
+    poses: list[Pose3] = []
+    kw = dict(fit_kwargs)
+    kw["min_points"] = _MIN_TRAIN
+    for f in range(k):
+        test = fold == f
+        train = ~test
+        try:
+            fit = fit_extrinsics(p[train], q[train], image_size=(W, H), **kw)
+        except CalibrationError as exc:
+            raise CalibrationError(f"cross-validation fold {f + 1} of {k}: {exc}") from None
+        poses.append(fit.pose)
+        res = _res(fit.pose.R, fit.pose.t, p[test], q[test], W, H)
+        col[test], row[test] = res[:, 0], res[:, 1]
+        ang[test] = _angular_error_deg(fit.pose, p[test], q[test], W, H)
+    return CrossValidation(
+        fit=full, col_err_px=col, row_err_px=row, ang_err_deg=ang, fold=fold, fold_poses=tuple(poses)
+    )
