@@ -120,7 +120,7 @@ def person_layer(
     inf = np.float32(np.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where((h >= 0) & (qa > 1e-12), (-qb - np.sqrt(np.maximum(h, 0))) / qa, inf)
-    y = baoa + t * bard
+        y = baoa + t * bard  # NaN for a missed ray perpendicular to the axis (inf·0): no body hit
     body = np.isfinite(t) & (y > 0) & (y < baba)
     cap_b = y >= baba  # end caps: spheres at a or b
     ocx = np.where(cap_b, -B32[cap, 0], -ax)
