@@ -127,6 +127,13 @@ LEG_MODEL = LegModel(
 # fmt: on
 
 
+def _along_beam(xy: FloatArray, origin: ArrayLike) -> FloatArray:
+    """(N, 2) unit vectors from the sensor at ``origin`` towards each point (zero for a point on it)."""
+    d = np.asarray(xy, dtype=np.float64).reshape(-1, 2) - np.asarray(origin, dtype=np.float64).reshape(1, 2)
+    n = np.hypot(d[:, 0], d[:, 1])[:, None]
+    return np.divide(d, n, out=np.zeros_like(d), where=n > 0)
+
+
 @dataclass(frozen=True)
 class ClassicalLaserDetector:
     """Hand-built leg detector (see the module docstring). Implements ``LaserDetector``.
@@ -139,6 +146,12 @@ class ClassicalLaserDetector:
         pair_min, pair_max: distance range between the centroids of two legs of one person, metres.
         single_leg_factor: score of an unpaired leg = its likelihood × this.
         blob_factor: score of a blob person = its likelihood × this.
+        leg_radius: radius of a leg at scan height, metres. A segment's centroid lies on the lit surface;
+            the leg's axis is ``2r/π`` further along the beam (centroid of a half circle), with ``r`` the
+            segment's half width capped at this value.
+        hidden_leg_offset: an unpaired leg is usually the nearer leg with the other one hidden behind it
+            (seen on simulated walkers: unpaired legs sit 0.08 m short of the body centre, pairs 0.035 m), so
+            a single-leg person is placed this much further along the beam than the leg, metres.
         merge_radius: detections of several scans closer than this are one person, metres.
         model: the leg likelihood.
     """
@@ -152,6 +165,8 @@ class ClassicalLaserDetector:
     single_leg_factor: float = 0.7
     blob_factor: float = 1.0
     merge_radius: float = 0.3
+    leg_radius: float = 0.07
+    hidden_leg_offset: float = 0.045
     model: LegModel = LEG_MODEL
 
     def __post_init__(self) -> None:
@@ -183,14 +198,17 @@ class ClassicalLaserDetector:
         xy = np.array([pts[s].mean(0) for s in segs])
         p = self.model(feats)
         width = feats[:, 1]
+        depth = (2.0 / np.pi) * np.minimum(width / 2.0, self.leg_radius)
+        xy = xy + depth[:, None] * _along_beam(xy, origin)
         kind = np.where(width > self.max_leg_width, KIND_BLOB, KIND_LEG)
         return LaserDetections(xy, p, kind, np.maximum(width / 2.0, 0.05), tuple(segs))
 
-    def people(self, legs: LaserDetections) -> LaserDetections:
+    def people(self, legs: LaserDetections, *, origin: ArrayLike = (0.0, 0.0)) -> LaserDetections:
         """People from leg candidates: greedy leg pairing, then unpaired legs and blobs.
 
         Args:
             legs: leg candidates as :meth:`legs` returns them (``segments`` optional).
+            origin: ``(2,)`` the sensor's position (an unpaired leg's person lies behind it along the beam).
 
         Returns:
             People; a pair's ``segments`` is the union of both legs' (None when ``legs`` has none).
@@ -226,9 +244,11 @@ class ClassicalLaserDetector:
                 kd.append(KIND_PAIR)
                 rad.append(np.hypot(*(legs.xy[i] - c)) + max(legs.radius[i], legs.radius[j]))
                 seg.append(np.concatenate([segs_in[i], segs_in[j]]))
+        behind = self.hidden_leg_offset * _along_beam(legs.xy, origin)
         for i in np.flatnonzero((is_leg & ~used) | is_blob):
-            factor = self.single_leg_factor if legs.kind[i] == KIND_LEG else self.blob_factor
-            xy.append(legs.xy[i])
+            single = legs.kind[i] == KIND_LEG
+            factor = self.single_leg_factor if single else self.blob_factor
+            xy.append(legs.xy[i] + behind[i] if single else legs.xy[i])
             sc.append(legs.scores[i] * factor)
             kd.append(int(legs.kind[i]))
             rad.append(max(float(legs.radius[i]), 0.15))
@@ -256,7 +276,7 @@ class ClassicalLaserDetector:
         Returns:
             People in the frame of ``points``; ``segments`` index ``points``.
         """
-        return self.people(self.legs(points, valid=valid, origin=origin))
+        return self.people(self.legs(points, valid=valid, origin=origin), origin=origin)
 
     def detect_scans(
         self,

@@ -50,7 +50,7 @@ def _legs(xy, scores, kinds=None, width=0.12):
     ],
 )
 def test_pairing_table(xy, scores, kinds, expected):
-    det = ClassicalLaserDetector()
+    det = ClassicalLaserDetector(hidden_leg_offset=0.0)  # positions of single legs: see the next test
     legs = _legs(xy, scores, kinds) if xy else LaserDetections.empty(with_segments=True)
     people = det.people(legs)
     got = sorted(
@@ -59,6 +59,28 @@ def test_pairing_table(xy, scores, kinds, expected):
     )
     assert got == sorted((k, round(x, 3), round(y, 3)) for k, x, y in expected)
     assert np.all((people.scores >= 0) & (people.scores <= 1))
+
+
+def test_single_leg_person_lies_behind_the_leg_along_the_beam():
+    det = ClassicalLaserDetector(hidden_leg_offset=0.05)
+    single = det.people(_legs([[3.0, 4.0]], [0.8]), origin=(0.0, 0.0))
+    np.testing.assert_allclose(single.xy[0], [3.0 * 1.01, 4.0 * 1.01])  # 5 m → 5.05 m on the same ray
+    from_side = det.people(_legs([[3.0, 4.0]], [0.8]), origin=(3.0, 0.0))
+    np.testing.assert_allclose(from_side.xy[0], [3.0, 4.05])
+    pair = det.people(_legs([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.7]))
+    np.testing.assert_allclose(pair.xy[0], [2.0, 0.0])  # pairs are not moved
+
+
+@pytest.mark.parametrize("rng", [1.0, 2.5, 4.0])
+def test_leg_position_is_the_leg_axis_not_the_lit_surface(rng):
+    r = 0.06
+    pts, valid = cast(circles=[(rng, 0.3, r)], walls=[(8.0, -5.0, 8.0, 5.0)])
+    legs = ClassicalLaserDetector().legs(pts, valid=valid)
+    k = int(np.argmin(np.hypot(legs.xy[:, 0] - rng, legs.xy[:, 1] - 0.3)))
+    err = np.hypot(legs.xy[k, 0] - rng, legs.xy[k, 1] - 0.3)
+    surface = np.nanmean(pts[valid & (np.hypot(pts[:, 0] - rng, pts[:, 1] - 0.3) < 2 * r)], axis=0)
+    assert err < 0.02
+    assert err < 0.5 * np.hypot(surface[0] - rng, surface[1] - 0.3)
 
 
 def test_people_without_segments():
