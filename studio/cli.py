@@ -101,7 +101,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("annotate", help=_help("annotate", "correct ground truth in the browser (127.0.0.1)"))
     p.add_argument("run", help="run directory")
-    p.add_argument("--port", type=int, default=8765)
+    p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (0 picks a free one)")
+    p.add_argument("--author", default=None, help="name recorded with each correction (default: login name)")
+    p.add_argument(
+        "--rerun",
+        nargs="?",
+        const="rerun+http://127.0.0.1:9876/proxy",
+        default=None,
+        metavar="URL",
+        help="log corrected ground truth live into a Rerun viewer showing this run (needs RUN/recording.rrd)",
+    )
 
     p = sub.add_parser("calibrate", help=_help("calibrate", "laser ↔ panorama calibration"))
     csub = p.add_subparsers(dest="calib_command", metavar="SUBCOMMAND", required=True)
