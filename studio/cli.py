@@ -44,6 +44,18 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _pattern(text: str) -> tuple[int, int]:
+    try:
+        cols, rows = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected inner corners as COLSxROWS (e.g. 8x5), got '{text}'"
+        ) from None
+    if cols < 2 or rows < 2:
+        raise argparse.ArgumentTypeError(f"a checkerboard needs at least 2x2 inner corners, got '{text}'")
+    return cols, rows
+
+
 def _help(command: str, text: str) -> str:
     """The command's help line, marked when its module is not there yet."""
     module, issue = _COMMANDS[command]
@@ -125,6 +137,38 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--points", required=True, help="CSV with columns x,y,z")
     c.add_argument("--image-size", type=_image_size, required=True, help="panorama size WxH")
     c.add_argument("--out", required=True, help="CSV of u,v to write")
+    c = csub.add_parser(
+        "targets", help="x,y,z,u,v correspondences from a calibration recording (ball | board)"
+    )
+    c.add_argument("recording", help="calibration recording (the target moved around the robot)")
+    c.add_argument("--rig", required=True, help="rig.yaml (nominal camera pose is enough)")
+    c.add_argument("--target", choices=("ball", "board"), default="ball")
+    c.add_argument("--out", required=True, help="correspondences CSV to write")
+    c.add_argument("--ball-radius", type=_positive_float, default=0.25, help="ball radius, m (default 0.25)")
+    c.add_argument("--board-width", type=_positive_float, default=0.8, help="board width, m (default 0.8)")
+    c.add_argument(
+        "--max-offset", type=float, default=0.5, help="search the camera time offset within ±S s (0: off)"
+    )
+    c.add_argument("--include-moving", action="store_true", help="also keep samples while the target moves")
+    c.add_argument("--json", default=None, help="also write a report as JSON")
+    c = csub.add_parser("intrinsics", help="check the spherical camera model with a checkerboard")
+    c.add_argument("source", help="a recording (with --rig) or a folder of panorama images")
+    c.add_argument("--rig", default=None, help="rig.yaml when SOURCE is a recording")
+    c.add_argument("--pattern", type=_pattern, default=(8, 5), help="inner corners COLSxROWS (default 8x5)")
+    c.add_argument("--square", type=_positive_float, default=0.07, help="square size, m (default 0.07)")
+    c.add_argument("--face-size", type=int, default=None, help="cube-face size, px (default: from the image)")
+    c.add_argument("--every", type=int, default=1, help="use every n-th panorama")
+    c.add_argument("--json", default=None, help="also write the report as JSON")
+    c = csub.add_parser("people", help="camera pose and camera-laser latency from people (no target)")
+    c.add_argument("--recording", required=True, help="any recording with people, camera and lasers")
+    c.add_argument("--rig", required=True, help="rig.yaml to refine")
+    c.add_argument("--out", required=True, help="rig.yaml to write, with the new camera pose and latency")
+    c.add_argument("--run", default=None, help="a labeled run: reuse its image detections")
+    c.add_argument("--max-offset-s", type=_positive_float, default=2.0, help="latency search range ±S s")
+    c.add_argument("--max-yaw-deg", type=_positive_float, default=30.0, help="yaw search range ±D°")
+    c.add_argument("--image-period-s", type=_positive_float, default=0.2, help="run the detector every S s")
+    c.add_argument("--max-std-s", type=_positive_float, default=0.05, help="refuse a less certain latency")
+    c.add_argument("--json", default=None, help="also write the result as JSON")
 
     p = sub.add_parser("detect-image", help="run the image people detector alone on panoramas")
     p.add_argument("panoramas", nargs="+", help="equirectangular images")

@@ -1,4 +1,5 @@
-"""``studio calibrate extrinsics|project`` (DESIGN.md §2).
+"""``studio calibrate extrinsics|project`` (DESIGN.md §2); ``targets``, ``intrinsics`` and ``people`` live in
+:mod:`studio.commands.calibrate_targets` and :mod:`studio.commands.calibrate_people`.
 
 * ``extrinsics --correspondences FILE.csv --image-size WxH [--folds K] [--json OUT] --out calib.yaml``:
   fits the camera pose, prints the cross-validated errors, writes ``calib.yaml`` (a rig fragment:
@@ -32,6 +33,19 @@ def run(args: argparse.Namespace) -> int:
         return _extrinsics(args)
     if args.calib_command == "project":
         return _project(args)
+    if args.calib_command in ("targets", "intrinsics"):
+        from studio.commands import calibrate_targets
+
+        fn = (
+            calibrate_targets.run_targets
+            if args.calib_command == "targets"
+            else calibrate_targets.run_intrinsics
+        )
+        return fn(args)
+    if args.calib_command == "people":
+        from studio.commands.calibrate_people import run_people
+
+        return run_people(args)
     raise StudioError(f"unknown calibrate subcommand '{args.calib_command}'")
 
 

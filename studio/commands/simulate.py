@@ -26,6 +26,14 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     mb = res.bytes / 1e6
+    if res.scenario.startswith("calib-"):
+        print(f"studio simulate: scenario '{res.scenario}', seed {res.seed}, {res.seconds:.1f} s")
+        print(f"  {res.recording}  ({mb:.1f} MB; {res.num_images} images, {res.num_scans} scans)")
+        print(f"  {res.rig}  (nominal camera pose)")
+        print(
+            f"  {res.ground_truth_yaml}, {res.ground_truth_jsonl.name}  (true camera pose, latency, targets)"
+        )
+        return 0
     head = f"studio simulate: scenario '{res.scenario}', seed {res.seed}, {res.seconds:.1f} s"
     print(f"{head}, {res.num_people} people")
     print(f"  {res.recording}  ({mb:.1f} MB, {mb / res.seconds * 60:.0f} MB/min; {res.num_images} images, "

@@ -87,7 +87,8 @@ def simulate(
     """Simulate ``scenario`` and write its recording, rig and ground truth into ``out``.
 
     Args:
-        scenario: ``static``, ``moving`` or ``rooms``.
+        scenario: ``static``, ``moving`` or ``rooms``; ``calib-ball``, ``calib-board`` and
+            ``calib-checkerboard`` are dispatched to :func:`studio.sim.calib.simulate_calib`.
         out: output directory (replaced atomically if it exists).
         seconds: duration, s (default: the scenario's, 50 / 96 / 165 s).
         seed: random seed; the same seed gives the same messages and ground truth.
@@ -100,6 +101,12 @@ def simulate(
     Raises:
         SimError: unknown scenario, bad duration, or ``out`` is not a writable directory.
     """
+    if isinstance(scenario, str) and scenario.startswith("calib-"):
+        from studio.sim.calib import simulate_calib
+
+        if rig is not None:
+            raise SimError(f"scenario {scenario} uses its own rig (rig= is not supported)")
+        return simulate_calib(scenario, out=out, seconds=seconds, seed=seed, progress=progress)
     t_start = time.perf_counter()
     sc = get_scenario(scenario)
     dur = sc.seconds if seconds is None else seconds
