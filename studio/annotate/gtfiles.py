@@ -12,12 +12,13 @@ import contextlib
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from studio.atomic import atomic_write_bytes, atomic_write_text
 from studio.labels import LabelFrame, dumps_yaml
+from studio.labels.formats import json_value
 
 __all__ = [
     "GT_JSONL",
@@ -39,23 +40,10 @@ _YAML_FRAME = re.compile(rb"^(?=frame )", re.MULTILINE)
 _dumps = json.JSONEncoder(separators=(",", ":")).encode
 
 
-def _clean(v: Any) -> Any:
-    """The value as ``studio.labels.formats`` cleans it (floats rounded to 6 decimals, NaN/inf → None)."""
-    if isinstance(v, float):
-        return round(v, 6) if math.isfinite(v) else None
-    if isinstance(v, Mapping):
-        return {str(k): _clean(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_clean(x) for x in v]
-    if hasattr(v, "item"):  # numpy scalar
-        return _clean(v.item())
-    return v
-
-
 def _num(v: Any) -> Any:
     if type(v) is float:  # the common case, without the generic dispatch
         return round(v, 6) if math.isfinite(v) else None
-    return _clean(v)
+    return json_value(v)
 
 
 def jsonl_line(f: LabelFrame) -> str:
@@ -75,16 +63,16 @@ def jsonl_line(f: LabelFrame) -> str:
         if p.score is not None:
             d["score"] = _num(p.score)
         if p.extra:
-            d.update(_clean(p.extra))
+            d.update(json_value(p.extra))
         people.append(d)
     obj: dict[str, Any] = {"frame": f.frame}
     if f.stamp_ns is not None:
         obj["stamp_ns"] = f.stamp_ns
     if f.robot_pose is not None:
-        obj["robot_pose"] = _clean(f.robot_pose.as_dict())
+        obj["robot_pose"] = json_value(f.robot_pose.as_dict())
     obj["people"] = people
     if f.extra:
-        obj.update(_clean(f.extra))
+        obj.update(json_value(f.extra))
     return _dumps(obj) + "\n"
 
 

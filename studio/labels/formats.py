@@ -33,6 +33,7 @@ __all__ = [
     "dumps_yaml",
     "frame_from_json",
     "frame_to_json",
+    "json_value",
     "read_labels",
     "read_labels_jsonl",
     "read_labels_yaml",
@@ -73,17 +74,19 @@ def write_labels_yaml(
     atomic_write_text(path, dumps_yaml(frames, decimals=decimals))
 
 
-def _clean(v: Any) -> Any:
+def json_value(v: Any) -> Any:
+    """``v`` made JSON-ready as the label writers write it: floats rounded to 6 decimals, NaN/inf → None,
+    numpy scalars → Python, mapping keys → str, tuples → lists."""
     if isinstance(v, float):
         if not math.isfinite(v):
             return None
         return round(v, 6)
     if isinstance(v, Mapping):
-        return {str(k): _clean(x) for k, x in v.items()}
+        return {str(k): json_value(x) for k, x in v.items()}
     if isinstance(v, list | tuple):
-        return [_clean(x) for x in v]
+        return [json_value(x) for x in v]
     if hasattr(v, "item"):  # numpy scalar
-        return _clean(v.item())
+        return json_value(v.item())
     return v
 
 
@@ -111,7 +114,7 @@ def frame_to_json(f: LabelFrame) -> dict[str, Any]:
         obj["robot_pose"] = f.robot_pose.as_dict()
     obj["people"] = people
     obj.update(f.extra)
-    cleaned: dict[str, Any] = _clean(obj)
+    cleaned: dict[str, Any] = json_value(obj)
     return cleaned
 
 
