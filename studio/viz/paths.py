@@ -33,6 +33,11 @@ The tree (``*``: one entity per sensor or face; "finish": logged after tracking 
     compare/summary                       TextDocument: the evaluation table (finish, with GT)
 
 Timelines: ``frame`` (sequence, the labeled frame index) and ``time`` (timestamp, the frame's header stamp).
+
+A calibration report (``studio calibrate extrinsics`` → ``*_report.rrd``, :mod:`studio.viz.calibration`) uses
+the same tree with ``frame`` = correspondence index: ``camera/panorama/scan/{observed,projected,
+projected_before,residuals}``, ``camera/faces/*/scan/{before,after}``, ``world/odom/robot/calibration/points``
+and ``metrics/calibration/{col_px,row_px}``.
 """
 
 from __future__ import annotations
