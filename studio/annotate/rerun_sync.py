@@ -10,16 +10,17 @@ truth against the auto labels. After each acknowledged edit the whole ground tru
 background thread (edits in quick succession are coalesced); rows logged later at the same time point
 replace the earlier ones in the viewer's latest-at queries.
 
-What it does not do: follow or move the viewer's time cursor. rerun-sdk 0.41 reports time-cursor events
-(``TimeUpdateEvent``) and can set the time (``set_time_ctrl``) only for a viewer embedded in a notebook
-(``rerun.notebook.Viewer``) or a web page through the npm ``@rerun-io/web-viewer`` package; the native
-viewer and the served web viewer offer no such channel to the SDK, and the annotation page loads nothing
-from outside 127.0.0.1. :meth:`RerunLink.status` says so (``can_follow: false``) and the page hides its
-"follow Rerun" switch.
+Time cursor: the link also attaches a :class:`rerun.experimental.ViewerClient` to the same viewer (rerun-sdk
+0.41's viewer-control API, experimental) and polls ``get_state()`` a few times a second: the viewer's cursor
+on the ``frame`` timeline (or on ``time``, mapped to the nearest frame stamp) of the run's recording is
+reported to the page, which follows it; stepping frames on the page moves the viewer's cursor with
+``set_time``. When that API is not available (an older viewer, a file sink in tests), ground truth is still
+logged and :meth:`RerunLink.status` says ``can_follow: false``.
 """
 
 from __future__ import annotations
 
+import bisect
 import threading
 from pathlib import Path
 from typing import Any
@@ -29,10 +30,8 @@ from studio.errors import StudioError
 __all__ = ["DEFAULT_URL", "RerunLink", "RerunLinkError", "run_recording_id"]
 
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
-FOLLOW_NOTE = (
-    "the Rerun SDK cannot read or move a native viewer's time cursor (only notebook / npm web-viewer "
-    "embeddings can); ground truth is logged live, step frames in each tool"
-)
+FOLLOW_NOTE = "no viewer control channel: ground truth is logged live, step frames in each tool"
+POLL_S = 0.25
 
 
 class RerunLinkError(StudioError):
@@ -61,18 +60,29 @@ class RerunLink:
         url: where ``rec`` is connected (for :meth:`status`).
     """
 
-    def __init__(self, state: Any, rec: Any, *, url: str | None = None) -> None:
+    def __init__(self, state: Any, rec: Any, *, url: str | None = None, viewer: Any = None) -> None:
         self.state = state
         self.rec = rec
         self.url = url
+        self.viewer = viewer  # a rerun.experimental.ViewerClient, or None
         self.logged_rev = -1
         self.error: str | None = None
+        self.viewer_frame: int | None = None
         self._dirty = threading.Event()
         self._idle = threading.Event()
         self._closed = False
+        self._stop = threading.Event()
         self._dirty.set()  # log the current ground truth once at start
         self._thread = threading.Thread(target=self._loop, name="studio-rerun-link", daemon=True)
         self._thread.start()
+        self._poller: threading.Thread | None = None
+        if viewer is not None:
+            self._frames = list(state.frame_ids)
+            self._stamps = sorted(
+                (f.stamp_ns, f.frame) for f in (state.auto[m] for m in self._frames) if f.stamp_ns is not None
+            )
+            self._poller = threading.Thread(target=self._poll, name="studio-rerun-cursor", daemon=True)
+            self._poller.start()
 
     @classmethod
     def connect(cls, state: Any, *, url: str | None = None) -> RerunLink:
@@ -96,7 +106,15 @@ class RerunLink:
             rec.connect_grpc(url or DEFAULT_URL)
         except Exception as exc:
             raise RerunLinkError(f"cannot connect to a Rerun viewer at {url or DEFAULT_URL}: {exc}") from None
-        return cls(state, rec, url=url or DEFAULT_URL)
+        viewer = None
+        try:
+            from rerun.experimental import ViewerClient
+
+            viewer = ViewerClient.connect(url or DEFAULT_URL)
+            viewer.get_state()
+        except Exception:  # no viewer-control API (older viewer): log only
+            viewer = None
+        return cls(state, rec, url=url or DEFAULT_URL, viewer=viewer)
 
     # ------------------------------------------------------------------ server hooks
     def log_frames(self, frames: list[int]) -> None:
@@ -112,14 +130,61 @@ class RerunLink:
             "recording_id": getattr(self.rec, "get_recording_id", lambda: None)(),
             "logged_rev": self.logged_rev,
             "error": self.error,
-            "can_follow": False,
-            "frame": None,
-            "note": FOLLOW_NOTE,
+            "can_follow": self.viewer is not None,
+            "frame": self.viewer_frame,
+            "note": None if self.viewer is not None else FOLLOW_NOTE,
         }
 
     def set_frame(self, frame: int) -> dict[str, Any]:
-        """The viewer's time cursor cannot be moved from the SDK (see the module doc)."""
-        return {"moved": False, "frame": frame, "reason": FOLLOW_NOTE}
+        """Move the viewer's time cursor to ``frame`` (on the ``frame`` timeline of the run's recording)."""
+        if self.viewer is None:
+            return {"moved": False, "frame": frame, "reason": FOLLOW_NOTE}
+        from studio.viz.paths import TIMELINE_FRAME
+
+        try:
+            self.viewer.set_time(
+                TIMELINE_FRAME, sequence=int(frame), play_state="paused", recording=self._store_id()
+            )
+        except Exception as exc:
+            return {"moved": False, "frame": frame, "reason": f"the viewer refused: {exc}"}
+        self.viewer_frame = int(frame)  # do not bounce back before the next poll
+        return {"moved": True, "frame": int(frame)}
+
+    def _store_id(self) -> str | None:
+        """The viewer's id of the run's recording (None: let the viewer use its active one)."""
+        rid = getattr(self.rec, "get_recording_id", lambda: None)()
+        try:
+            recs = self.viewer.get_state().recordings
+        except Exception:
+            return None
+        return next((r.store_id for r in recs if rid and str(r.store_id).endswith(f":{rid}")), None)
+
+    def _cursor_frame(self, timeline: str | None, value: int | None) -> int | None:
+        from studio.viz.paths import TIMELINE_FRAME, TIMELINE_TIME
+
+        if value is None:
+            return None
+        if timeline == TIMELINE_FRAME:
+            return int(value)
+        if timeline == TIMELINE_TIME and self._stamps:
+            k = bisect.bisect_left(self._stamps, (int(value), -1))
+            near = [self._stamps[i] for i in (k - 1, k) if 0 <= i < len(self._stamps)]
+            return min(near, key=lambda sf: abs(sf[0] - int(value)))[1]
+        return None
+
+    def _poll(self) -> None:
+        rid = getattr(self.rec, "get_recording_id", lambda: None)()
+        while not self._stop.wait(POLL_S):
+            try:
+                st = self.viewer.get_state()
+            except Exception:
+                continue
+            rec = next((r for r in st.recordings if rid and str(r.store_id).endswith(f":{rid}")), None)
+            if rec is None:
+                continue
+            f = self._cursor_frame(rec.current_timeline, rec.current_time)
+            if f is not None:
+                self.viewer_frame = f
 
     def wait_idle(self, timeout_s: float = 30.0) -> bool:
         """Wait until everything edited so far is logged (for tests)."""
@@ -127,8 +192,11 @@ class RerunLink:
 
     def close(self) -> None:
         self._closed = True
+        self._stop.set()
         self._dirty.set()
         self._thread.join(timeout=10)
+        if self._poller is not None:
+            self._poller.join(timeout=5)
         try:
             self.rec.flush()
             self.rec.disconnect()
