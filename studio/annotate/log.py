@@ -19,10 +19,42 @@ from typing import Any
 from studio.annotate.errors import AnnotationError
 from studio.atomic import atomic_write_text
 
-__all__ = ["FORMAT", "VERSION", "RunLock", "append_line", "file_sha256", "read_log", "write_header"]
+__all__ = [
+    "FORMAT",
+    "MAX_NAME",
+    "VERSION",
+    "RunLock",
+    "append_line",
+    "check_name",
+    "file_sha256",
+    "read_log",
+    "write_header",
+]
 
 FORMAT = "studio-annotations"
 VERSION = 1
+MAX_NAME = 200  # characters of an author or client name
+
+
+def check_name(value: Any, what: str) -> str | None:
+    """An author or client name: None or a short string that is valid UTF-8 text (no lone surrogates).
+
+    Raises:
+        AnnotationError: anything else (it would be written into the log and shown on every page).
+    """
+    if value is None:
+        return None
+    if not isinstance(value, str):
+        raise AnnotationError(f"{what} must be a string, got {type(value).__name__}")
+    if len(value) > MAX_NAME:
+        raise AnnotationError(f"{what} must be at most {MAX_NAME} characters, got {len(value)}")
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise AnnotationError(f"{what} is not valid text (lone surrogate): {value!r}") from None
+    if any(ord(c) < 32 for c in value):
+        raise AnnotationError(f"{what} must not contain control characters: {value!r}")
+    return value
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:

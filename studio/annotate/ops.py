@@ -32,6 +32,8 @@ OPS: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
     "review": (("start", "end"), {"reviewed": True}),
 }
 FLAGS = ("occluded", "uncertain")
+MAX_ID = 2**31 - 1  # ids and frame numbers: int32 (evaluators, MOT files and JavaScript handle them exactly)
+MAX_COORD = 1000.0  # m: |x|, |y| of a person in the base frame (no sensor sees farther)
 _PERSON_FIELDS = frozenset(f.name for f in fields(LabelPerson))
 
 
@@ -90,18 +92,22 @@ def _is_int(v: Any) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
-def _check_id(v: Any, what: str) -> int:
+def _check_id(v: Any, what: str, limits: bool = True) -> int:
     if not _is_int(v) or v < 0:
         raise AnnotationError(f"{what} must be a non-negative integer, got {v!r}")
+    if limits and v > MAX_ID:
+        raise AnnotationError(f"{what} must be at most {MAX_ID}, got {v}")
     return int(v)
 
 
-def _check_coord(v: Any, what: str) -> float:
+def _check_coord(v: Any, what: str, limits: bool = True) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise AnnotationError(f"{what} must be a number (metres), got {v!r}")
     f = float(v)
     if not math.isfinite(f):
         raise AnnotationError(f"{what} must be finite, got {v!r}")
+    if limits and abs(f) > MAX_COORD:
+        raise AnnotationError(f"{what} must be within ±{MAX_COORD:g} m of the robot, got {f:g}")
     return f
 
 
@@ -111,10 +117,12 @@ def _check_opt_bool(v: Any, what: str) -> bool | None:
     return v
 
 
-def normalize_op(op: Any) -> dict[str, Any]:
+def normalize_op(op: Any, *, limits: bool = True) -> dict[str, Any]:
     """Check an operation's keys and value types; return a copy with defaults filled in.
 
-    Frame existence and the people in frames are checked by :meth:`Timeline.plan`.
+    Frame existence and the people in frames are checked by :meth:`Timeline.plan`. ``limits``: also
+    refuse ids above :data:`MAX_ID` and coordinates beyond :data:`MAX_COORD` (off when replaying a log
+    written before these limits existed).
 
     Raises:
         AnnotationError: not an object, unknown op, unknown or missing keys, bad value types.
@@ -138,14 +146,15 @@ def normalize_op(op: Any) -> dict[str, Any]:
     for k, default in optional.items():
         out[k] = op.get(k, default)
     for k in ("frame", "start", "end", "id"):
+        if k in out and out[k] is not None:  # frames must exist, ids (but add's) be present: no limit here
+            out[k] = _check_id(out[k], f"op {name!r}: {k!r}", limits and name == "add" and k == "id")
+    given = out["ids"] if name == "merge" and isinstance(out["ids"], list | tuple) else ()
+    for k in ("new_id", "into"):  # ids an op gives out (merging into a present id is fine)
         if k in out and out[k] is not None:
-            out[k] = _check_id(out[k], f"op {name!r}: {k!r}")
-    for k in ("new_id", "into"):
-        if k in out and out[k] is not None:
-            out[k] = _check_id(out[k], f"op {name!r}: {k!r}")
+            out[k] = _check_id(out[k], f"op {name!r}: {k!r}", limits and out[k] not in given)
     for k in ("x", "y"):
         if k in out:
-            out[k] = _check_coord(out[k], f"op {name!r}: {k!r}")
+            out[k] = _check_coord(out[k], f"op {name!r}: {k!r}", limits)
     if name == "move" and not isinstance(out["propagate"], bool):
         raise AnnotationError(f"op 'move': 'propagate' must be true or false, got {out['propagate']!r}")
     if name == "review" and not isinstance(out["reviewed"], bool):
@@ -159,7 +168,7 @@ def normalize_op(op: Any) -> dict[str, Any]:
         ids = out["ids"]
         if not isinstance(ids, list | tuple) or len(ids) < 2:
             raise AnnotationError(f"op 'merge': 'ids' must be a list of at least two ids, got {ids!r}")
-        out["ids"] = [_check_id(i, "op 'merge': each of 'ids'") for i in ids]
+        out["ids"] = [_check_id(i, "op 'merge': each of 'ids'", False) for i in ids]
         if len(set(out["ids"])) != len(out["ids"]):
             raise AnnotationError(f"op 'merge': 'ids' has duplicates: {out['ids']}")
     return out

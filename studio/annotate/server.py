@@ -2,7 +2,8 @@
 
 Bound to 127.0.0.1 only. Every answer that is not a page, a script or an image is JSON; errors are
 ``{"error": "..."}`` with 400 (malformed request), 404 (unknown frame or path), 409 (conflict: the
-frame changed since the client's ``base_rev``) or 422 (an operation that does not apply). Nothing outside
+frame changed since the client's ``base_rev``), 413 (body over 256 kB) or 422 (an operation that does
+not apply). Nothing outside
 the run directory is ever served: static files come from a fixed list of names, images from the
 recording named in ``run.json``.
 
@@ -11,6 +12,7 @@ Endpoints::
     GET  /                              the page
     GET  /static/{name}                 index.html, app.js, style.css
     GET  /api/meta                      run name, frame count, stamps, camera, sizes, rev
+    GET  /api/state                     rev, metrics rev, reviewed count, Rerun link (what a page polls)
     GET  /api/frame/{n}                 ground truth, auto labels, scan (xy + uv), trails, flags, who changed
     GET  /api/frame/{n}/panorama.jpg    the panorama (downscaled, cached)
     POST /api/op                        {"op": {...}, "base_rev": r, "client": "..."} → {rev, frames, op}
@@ -26,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import re
 import socket
 import threading
 from collections.abc import Callable
@@ -47,6 +50,7 @@ STATIC_DIR = Path(__file__).with_name("static")
 STATIC_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript", ".css": "text/css"}
 TRAIL_FRAMES = 25  # frames of history drawn as trails in the bird's-eye view
 PERSON_HEIGHT = 1.7  # m: the panorama marker of a person spans the ground to this height
+MAX_BODY = 256 * 1024  # bytes: the largest request body accepted (an op is well under 1 kB)
 
 
 class ServerError(StudioError):
@@ -67,10 +71,10 @@ def _int_param(value: Any, what: str) -> int:
         raise _ApiError(400, f"{what} must be an integer, got {value!r}")
     if isinstance(value, int):
         return value
-    try:
-        return int(str(value))
-    except ValueError:
-        raise _ApiError(400, f"{what} must be an integer, got {value!r}") from None
+    text = str(value)
+    if not re.fullmatch(r"-?[0-9]{1,19}", text):  # not "1_0", "+1", " 1", "١"
+        raise _ApiError(400, f"{what} must be an integer, got {value!r}")
+    return int(text)
 
 
 class AnnotateServer:
@@ -100,9 +104,11 @@ class AnnotateServer:
         if not (self.run_dir / "labels.jsonl").is_file():
             raise ServerError(f"{self.run_dir}: not a run directory (no labels.jsonl)")
         self.author = author
+        self.auto = read_labels(self.run_dir / "labels.jsonl").by_frame()
+        if not self.auto:
+            raise ServerError(f"{self.run_dir}/labels.jsonl has no frames: nothing to annotate")
         self.store = store if store is not None else AnnotationStore.open(self.run_dir, author=author)
         self.media = media or RunMedia(self.run_dir, cache_dir=self.run_dir / "annotations" / "cache")
-        self.auto = read_labels(self.run_dir / "labels.jsonl").by_frame()
         self.frame_ids = sorted(self.auto)
         self._frame_set = set(self.frame_ids)
         self._index = {m: i for i, m in enumerate(self.frame_ids)}
@@ -189,12 +195,12 @@ class AnnotateServer:
                 trails.setdefault(str(q.id), []).append([round(bx, 3), round(by, 3)])
         return trails
 
-    def reviewed(self) -> set[int]:
+    def reviewed(self) -> frozenset[int]:
         """The store's reviewed frames, cached per revision (the store scans every frame)."""
         rev = self.store.rev
         if self._reviewed[0] != rev:
             self._reviewed = (rev, frozenset(self.store.reviewed()))
-        return set(self._reviewed[1])
+        return self._reviewed[1]
 
     # ------------------------------------------------------------------ evaluation (background)
     def _eval_loop(self) -> None:
@@ -218,11 +224,16 @@ class AnnotateServer:
             for which, frames in (("all", gt_all), ("reviewed", [f for f in gt_all if f.frame in reviewed])):
                 try:
                     result[which] = evaluate(pred, LabelSet.from_frames(frames)) if frames else None
-                except (StudioError, ValueError):
+                except Exception as exc:  # keep the thread alive: the page shows the error instead
                     result[which] = None
+                    result["error"] = f"{type(exc).__name__}: {exc}"
             with self._ev_cond:
                 self._ev_result = (rev, result)
                 self._ev_cond.notify_all()
+
+    def evaluation_error(self) -> str | None:
+        """Why the latest evaluation failed (None: it did not)."""
+        return self._ev_result[1].get("error")
 
     def evaluation(self, which: str, *, wait_s: float = 0.0) -> tuple[Any, int]:
         """The latest evaluation of the auto labels and its store revision (-1: none yet).
@@ -272,6 +283,16 @@ class AnnotateServer:
             "rev": rev,
             "reviewed": reviewed,
             "author": self.author,
+            "rerun": self.rerun.status() if self.rerun is not None else None,
+        }
+
+    def state(self) -> dict[str, Any]:
+        """What a page polls every few seconds: small, whatever the run's length."""
+        _, ev_rev = self.evaluation("all")  # starts a re-evaluation when the revision moved on
+        return {
+            "rev": self.store.rev,
+            "metrics_rev": ev_rev,
+            "reviewed_frames": len(self.reviewed()),
             "rerun": self.rerun.status() if self.rerun is not None else None,
         }
 
@@ -329,6 +350,7 @@ class AnnotateServer:
             raise _ApiError(404, str(exc)) from None
 
     def apply(self, body: Any, kind: str) -> dict[str, Any]:
+        from studio.annotate.log import check_name
         from studio.annotate.store import AnnotationError, ConflictError
 
         if not isinstance(body, dict):
@@ -336,12 +358,11 @@ class AnnotateServer:
         base_rev = body.get("base_rev")
         if base_rev is not None:
             base_rev = _int_param(base_rev, "base_rev")
-        client = body.get("client")
-        if client is not None and not isinstance(client, str):
-            raise _ApiError(400, "client must be a string")
-        author = body.get("author") or self.author
-        if not isinstance(author, str) or len(author) > 80:
-            raise _ApiError(400, "author must be a short string")
+        try:
+            client = check_name(body.get("client"), "client")
+            author = check_name(body.get("author") or self.author, "author")
+        except AnnotationError as exc:
+            raise _ApiError(400, str(exc)) from None
         with self.lock:
             try:
                 if kind == "op":
@@ -352,9 +373,9 @@ class AnnotateServer:
                         raise _ApiError(400, 'expected {"op": {"op": "move", ...}, "base_rev": N}')
                     res = self.store.apply(op, base_rev=base_rev, author=author, client=client)
                 elif kind == "undo":
-                    res = self.store.undo(base_rev=base_rev, author=author)
+                    res = self.store.undo(base_rev=base_rev, author=author, client=client)
                 else:
-                    res = self.store.redo(base_rev=base_rev, author=author)
+                    res = self.store.redo(base_rev=base_rev, author=author, client=client)
             except ConflictError as exc:
                 raise _ApiError(409, str(exc), {"rev": self.store.rev}) from None
             except AnnotationError as exc:
@@ -392,6 +413,7 @@ class AnnotateServer:
             "flagged": flagged,
         }
         out["metrics"] = None if ev is None else ev.to_json()
+        out["metrics_error"] = self.evaluation_error()
         return out
 
     def next_frame(self, kind: Any, start: Any, direction: Any, wait: Any = None) -> dict[str, Any]:
@@ -473,6 +495,10 @@ def create_app(state: AnnotateServer) -> Any:
     def meta() -> Any:
         return state.meta()
 
+    @app.get("/api/state")
+    def state_() -> Any:
+        return state.state()
+
     @app.get("/api/frame/{n}")
     def frame(n: str) -> Any:
         return JSONResponse(_finite(state.frame(n)))
@@ -483,7 +509,16 @@ def create_app(state: AnnotateServer) -> Any:
         return Response(data, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
 
     async def _body(request: Request) -> Any:
-        raw = await request.body()
+        declared = request.headers.get("content-length", "")
+        if declared.isdigit() and int(declared) > MAX_BODY:
+            raise _ApiError(413, f"request body too large ({declared} bytes; at most {MAX_BODY})")
+        chunks, size = [], 0
+        async for chunk in request.stream():
+            size += len(chunk)
+            if size > MAX_BODY:
+                raise _ApiError(413, f"request body too large (over {MAX_BODY} bytes)")
+            chunks.append(chunk)
+        raw = b"".join(chunks)
         if not raw:
             return {}
         try:

@@ -129,6 +129,14 @@ class AnnotationStore:
         labels_path = run / "labels.jsonl"
         if not labels_path.is_file():
             raise AnnotationError(f"{run}: not a labeled run directory (no labels.jsonl)")
+        _log.check_name(author, "author")
+        if not os.access(run, os.W_OK) or (
+            (run / "annotations").is_dir() and not os.access(run / "annotations", os.W_OK)
+        ):
+            raise AnnotationError(
+                f"{run}: the run directory is read-only; corrections need to write annotations/ and "
+                "ground_truth.* there (copy the run to a writable place)"
+            )
         store = cls()
         store.run_dir, store.author = run, author
         try:
@@ -387,7 +395,9 @@ class AnnotationStore:
         self._rev = seq
         return entry
 
-    def _plan_record(self, rec: dict[str, Any]) -> tuple[dict[str, Any], dict[int, FrameState], set[int]]:
+    def _plan_record(
+        self, rec: dict[str, Any], *, replay: bool = False
+    ) -> tuple[dict[str, Any], dict[int, FrameState], set[int]]:
         """(normalised op, changes, positions the op touches) of an op, undo or redo record."""
         op = rec["op"]
         name = op.get("op") if isinstance(op, dict) else None
@@ -399,7 +409,7 @@ class AnnotationStore:
             e = self._entries[target - 1]
             changes = dict(e.before if name == "undo" else e.after)
             return {"op": name, "target": target}, changes, set(changes)
-        norm = normalize_op(op)
+        norm = normalize_op(op, limits=not replay)
         norm, changes = self._tl.plan(norm, seq=self._rev + 1)
         touched = set(changes)
         if "frame" in norm:
@@ -423,7 +433,7 @@ class AnnotationStore:
 
     def _apply_record(self, rec: dict[str, Any]) -> None:
         """Replay one log record."""
-        norm, changes, _ = self._plan_record(rec)
+        norm, changes, _ = self._plan_record(rec, replay=True)
         logged = rec.get("op")
         if (
             norm["op"] in ("undo", "redo")
@@ -441,6 +451,8 @@ class AnnotationStore:
     def _do(self, op: Any, base_rev: int | None, author: str | None, client: str | None) -> OpResult:
         if self._fd is None:
             raise AnnotationError("the annotation store is closed")
+        _log.check_name(author, "author")
+        _log.check_name(client, "client")
         norm, changes, touched = self._plan_record({"op": op})
         self._check_conflict(touched, base_rev)
         frames = [self._tl.numbers[i] for i in sorted(changes)]

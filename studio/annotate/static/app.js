@@ -36,6 +36,10 @@ async function loadMeta() {
   $("nframes").textContent = `/ ${S.frames[S.frames.length - 1]}`;
   $("frameno").max = S.frames[S.frames.length - 1];
   if (!S.meta.has_camera) { $("pano-wrap").hidden = true; }
+  const note = $("media-note");
+  note.hidden = !S.meta.media_problem;
+  note.textContent = S.meta.media_problem ? `No sensor data (${S.meta.media_problem}): scans and panoramas are not ` +
+    "shown (but for panoramas cached earlier); the labels can still be corrected in the bird's-eye view." : "";
   const rr = S.meta.rerun;
   $("follow-wrap").hidden = !(rr && rr.can_follow);
   $("rerun-state").hidden = !(rr && rr.connected);
@@ -120,7 +124,7 @@ async function loadMetrics(wait = false) {
     const r3 = (v) => (typeof v === "number" ? v.toFixed(3) : "–");
     const rows = x ? [["precision", r3(x.precision)], ["recall", r3(x.recall)], ["F1", r3(x.f1)], ["MOTA", r3(x.mota)],
       ["IDF1", r3(x.idf1)], ["HOTA", r3(x.hota)], ["ID switches", x.id_switches], ["TP / FP / FN", `${x.tp} / ${x.fp} / ${x.fn}`],
-      ["frames", x.num_frames]] : [["", "mark frames reviewed (R) to measure the auto labels on them"]];
+      ["frames", x.num_frames]] : [["", m.metrics_error ? `evaluation failed: ${m.metrics_error}` : "mark frames reviewed (R) to measure the auto labels on them"]];
     for (const [k, v] of rows) {
       const tr = document.createElement("tr");
       tr.innerHTML = `<td>${k}</td><td data-key="${k}">${fmt(v)}</td>`;
@@ -161,7 +165,8 @@ async function send(op) {
 async function undoRedo(kind) {
   try {
     const r = await api(`/api/${kind}`, { method: "POST", body: JSON.stringify({ base_rev: S.rev, client: CLIENT }) });
-    S.rev = r.rev; banner(""); status(`${kind} · rev ${r.rev}`, "ok");
+    const fr = r.frames.length ? ` frame${r.frames.length > 1 ? "s" : ""} ${r.frames[0]}${r.frames.length > 1 ? "–" + r.frames[r.frames.length - 1] : ""}` : "";
+    S.rev = r.rev; banner(""); status(`${kind} of #${r.op.target}${fr} · rev ${r.rev}`, "ok");
   } catch (e) {
     if (e.status === 409) banner(`Conflict: ${e.message}`); else status(e.message, "bad");
   }
@@ -203,6 +208,8 @@ async function jump(kind, dir = 1) {
     const r = await api(`/api/next?kind=${kind}&start=${frameNo()}&dir=${dir}`);
     if (r.frame === null) { status(`no ${dir > 0 ? "further" : "earlier"} ${kind === "flag" ? "flagged" : "unreviewed"} frame`, ""); return; }
     await loadFrame(S.frames.indexOf(r.frame));
+    const what = kind === "flag" ? "flagged" : "unreviewed";
+    status(`${what} frame ${r.frame} · ${r.remaining} ${what} in all`, "");
   } catch (e) { status(e.message, "bad"); }
 }
 
@@ -453,8 +460,13 @@ function setupPano() {
     }
     S.sel = best ? best.id : null; render();
   });
-  $("pano").addEventListener("load", () => { $("pano-msg").hidden = true; renderPano(); });
-  $("pano").addEventListener("error", () => { const m = $("pano-msg"); m.hidden = false; m.textContent = "panorama unavailable"; });
+  $("pano").addEventListener("load", () => { $("pano-msg").hidden = true; $("pano-wrap").classList.remove("missing"); renderPano(); });
+  $("pano").addEventListener("error", () => {
+    // keep the panel's size (people are still drawn where they are in the panorama)
+    const m = $("pano-msg"); m.hidden = false; $("pano-wrap").classList.add("missing");
+    m.textContent = S.meta && S.meta.media_problem ? "panorama unavailable: no recording" : "panorama unavailable";
+    renderPano();
+  });
 }
 
 function setupControls() {
@@ -471,6 +483,11 @@ function setupControls() {
   $("occluded").onchange = ops.flag; $("uncertain").onchange = ops.flag;
   $("timeline").addEventListener("click", (e) => { const r = e.target.getBoundingClientRect(); loadFrame(Math.floor(((e.clientX - r.left) / r.width) * S.frames.length)); });
   window.addEventListener("resize", render);
+  // a typed #N (or the back button) goes to frame N
+  window.addEventListener("hashchange", () => {
+    const i = S.frames.indexOf(parseInt(location.hash.slice(1), 10));
+    if (i >= 0 && i !== S.idx) loadFrame(i);
+  });
   // the panorama's height changes the bird's-eye view's size: keep every person on screen
   if (window.ResizeObserver) new ResizeObserver(() => { if (S.data && !S.drag) renderBev(); }).observe($("bev").parentElement);
   window.addEventListener("keydown", (e) => {
@@ -484,7 +501,7 @@ function setupControls() {
       Home: () => loadFrame(0), End: () => loadFrame(S.frames.length - 1),
       f: () => jump("flag", 1), F: () => jump("flag", -1), u: () => jump("unreviewed", 1), U: () => jump("unreviewed", -1),
       r: () => ops.review(!(S.data && S.data.reviewed)),
-      Enter: async () => { await ops.review(true); loadFrame(S.idx + 1); },
+      Enter: async () => { if (await ops.review(true)) loadFrame(S.idx + 1); }, // stay on a refused frame
       n: () => { S.addMode = !S.addMode; render(); }, Delete: ops.del, Backspace: ops.del,
       i: () => $("new-id").focus(), m: ops.merge, s: ops.split, p: () => { $("propagate").checked = !$("propagate").checked; },
       Escape: () => { S.sel = null; S.addMode = false; render(); }, "+": () => { S.scale *= 1.2; renderBev(); }, "-": () => { S.scale /= 1.2; renderBev(); },
@@ -498,9 +515,9 @@ function setupControls() {
 async function poll() {
   if (window.studioNoPoll) return; // tests: keep a tab stale on purpose
   try {
-    const m = await api("/api/meta");
-    if (m.rev !== S.rev && !S.busy && !S.drag) { S.rev = m.rev; S.reviewed = new Set(m.reviewed); await loadFrame(S.idx); loadMetrics(true); status(`updated · rev ${m.rev}`, "ok"); }
-    else if (S.metricsRev !== m.rev && !S.busy) loadMetrics(false);
+    const m = await api("/api/state"); // a few bytes, whatever the run's length
+    if (m.rev !== S.rev && !S.busy && !S.drag) { S.rev = m.rev; await loadFrame(S.idx); loadMetrics(true); status(`updated · rev ${m.rev}`, "ok"); }
+    else if (S.metricsRev !== m.metrics_rev && !S.busy) loadMetrics(false);
     S.meta.rerun = m.rerun;
     if (m.rerun && m.rerun.can_follow && $("follow").checked && m.rerun.frame !== null && m.rerun.frame !== undefined &&
         m.rerun.frame !== S.lastRerunFrame && m.rerun.frame !== frameNo()) {
