@@ -16,6 +16,11 @@ point ``p`` is seen at the pixel of the direction ``R^T (p - t)`` where ``(R, t)
 
 When every ``z`` is equal (the ``z = 0`` when-unknown convention) the fit is still exact: the camera
 height is then relative to the targets' plane and row errors absorb the target's true height.
+
+Refused besides degenerate input (:func:`check_correspondences`): a mirrored laser y axis (the fit with
+``y → −y`` is far better, or with one ``z`` the only fit is an upside-down camera), a pose whose kept points
+are typically more than 5° off, and a pose the points do not determine (1σ from the Jacobian above 5 cm or
+0.5° for 0.1° of pixel noise); see :func:`fit_extrinsics`.
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ POSE_PARAMS = ("x", "y", "z", "roll", "pitch", "yaw")
 _MIN_POINTS = 6  # rows needed for a fit from user input
 _MIN_TRAIN = 5  # rows a cross-validation training fold needs
 _OUTLIER_SIGMAS = 3.5
+_MAX_NOISE_DEG = 5.0  # a fit whose kept points are typically further off than this is no pose
 _RAYLEIGH_MEDIAN = 1.1774  # median of a 2-D isotropic Gaussian residual norm, in σ
 
 
@@ -415,6 +421,136 @@ def _median_norm(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int) -
     return float(np.nanmedian(r)) if np.isfinite(r).any() else math.inf
 
 
+_MIRROR = np.array([1.0, -1.0, 1.0])
+_MAX_STD_M = 0.05  # largest 1σ of the camera position for 0.1° of pixel noise, metres
+_MAX_STD_DEG = 0.5  # largest 1σ of the camera rotation for 0.1° of pixel noise, degrees
+
+
+def _all_median(fit: ExtrinsicsFit) -> float:
+    """Median residual norm over every point (robust to < 50 % outliers), px."""
+    return float(np.median(np.linalg.norm(fit.residual_px, axis=1)))
+
+
+def _refuse_mirrored(
+    p: FloatArray, q: FloatArray, W: int, H: int, fit: ExtrinsicsFit | None, kw: dict[str, Any]
+) -> None:
+    """Raise when the data look like a laser with a mirrored y axis (mounted upside down).
+
+    With varying ``z`` a mirror is no rigid motion: the fit of ``(x, −y, z)`` is then far better. With one
+    ``z`` for all points (or nearly) the mirror equals a half turn about x, so the data as given fit just
+    as well with the camera upside down, and the mirrored data with it upright: an upside-down camera that
+    fits no better than an upright one with ``y → −y`` is taken as a mirrored laser.
+    """
+    floor = max(2.0, W / 2000.0)
+    upside_down = False
+    if fit is not None:
+        med = _all_median(fit)
+        upside_down = bool(fit.pose.R[2, 2] < 0.0)
+        if not upside_down and med <= 2.0 * floor:
+            return  # an upright camera that fits well: nothing to compare
+    try:
+        mirrored = _fit(p * _MIRROR, q, W, H, **kw)
+    except CalibrationError:
+        return
+    med_m = _all_median(mirrored)
+    if med_m > max(4.0 * floor, W / 400.0) or mirrored.n_outliers > 0.3 * mirrored.n:
+        return  # the mirrored data do not fit well either: not a mirror, just bad data
+    note = ""
+    if fit is None:
+        mirror = True
+        given = "no pose fits the file as given"
+    else:
+        given = f"a median error of {med:.1f} px as given"
+        mirror = med_m < 0.5 * med
+        if upside_down and mirrored.pose.R[2, 2] > 0.0 and med_m <= 1.2 * med + 1e-6:
+            mirror = True
+            given += ", where the camera comes out upside down"
+            note = (
+                " (a camera really mounted upside down: give the targets' true heights in z, which tell "
+                "the two apart, or call fit_extrinsics(..., check_mirror=False))"
+                if fit.z_constant
+                else " (a camera really mounted upside down: fit_extrinsics(..., check_mirror=False))"
+            )
+    if mirror:
+        raise CalibrationError(
+            f"the laser's y axis looks mirrored (a laser mounted upside down, or a panorama flipped "
+            f"left-right): with y -> -y the points fit with a median error of {med_m:.1f} px, against "
+            f"{given}. Negate the y column (y -> -y) and run again; when converting scans to the base "
+            f"frame, give the upside-down laser's mount (roll 180°){note}"
+        )
+
+
+def _pose_std(fit: ExtrinsicsFit, p: FloatArray, q: FloatArray, fixed: Sequence[str]) -> FloatArray:
+    """1σ of ``x y z`` (m) and of the rotation about the camera axes (deg) for 0.1° of pixel noise.
+
+    Held parameters have 0; an undetermined one is inf.
+    """
+    W, H = fit.image_size
+    m = fit.inliers
+    model = _Model(fit.pose, [f for f in fixed if f in ("x", "y", "z")])
+    x0 = model.x0()
+
+    def f(x: FloatArray) -> FloatArray:
+        R, t = model.pose_parts(x)
+        return _res(R, t, p[m], q[m], W, H).ravel()
+
+    r0 = f(x0)
+    J = np.empty((r0.size, x0.size))
+    for k in range(x0.size):
+        h = 1e-6
+        dx = np.zeros_like(x0)
+        dx[k] = h
+        J[:, k] = (f(x0 + dx) - f(x0 - dx)) / (2 * h)
+    noise = W / 3600.0  # px per 0.1°
+    out = np.zeros(6)
+    try:
+        cov = np.linalg.inv(J.T @ J) * noise**2
+        d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        if not np.isfinite(d).all() or np.linalg.cond(J) > 1e12:
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:
+        d = np.full(x0.size, np.inf)
+    free = [k for k in POSE_PARAMS[:3] if k not in fixed] + ["rx", "ry", "rz"]
+    for name, v in zip(free, d, strict=True):
+        if name in POSE_PARAMS[:3]:
+            out[POSE_PARAMS.index(name)] = v
+        else:
+            out[3 + ("rx", "ry", "rz").index(name)] = math.degrees(v) if math.isfinite(v) else v
+    if any(k in fixed for k in ("roll", "pitch", "yaw")):
+        out[3:] = 0.0  # rotation partly held: not judged here
+    return out
+
+
+def _refuse_undetermined(fit: ExtrinsicsFit, p: FloatArray, q: FloatArray, fixed: Sequence[str]) -> None:
+    """Raise when the inliers do not determine the pose (see ``check_geometry``)."""
+    std = _pose_std(fit, p, q, fixed)
+    if std[:3].max() <= _MAX_STD_M and std[3:].max() <= _MAX_STD_DEG:
+        return
+    pts = p[fit.inliers]
+    why = []
+    n = len(pts)
+    az = np.arctan2(pts[:, 1], pts[:, 0])
+    gaps = np.diff(np.sort(np.concatenate([az, az[:1] + 2 * np.pi])))
+    span = math.degrees(2 * np.pi - float(gaps.max()))
+    sv = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+    if span < 30.0:
+        why.append(f"all within {span:.0f}° of azimuth around the laser")
+    if sv[1] < 0.05 * sv[0]:
+        why.append("nearly on one line")
+    if n < 10:
+        why.append(f"only {n} points")
+    reason = f" (the points are {', '.join(why)})" if why else ""
+    worst = (
+        f"camera position ±{std[:3].max():.2f} m"
+        if std[:3].max() / _MAX_STD_M >= std[3:].max() / _MAX_STD_DEG
+        else f"camera rotation ±{std[3:].max():.1f}°"
+    )
+    raise CalibrationError(
+        f"the correspondences do not determine the camera pose{reason}: 0.1° of pixel noise moves the "
+        f"{worst}; add target positions in other directions and at other distances around the robot"
+    )
+
+
 def fit_extrinsics(
     xyz: ArrayLike,
     uv: ArrayLike,
@@ -426,6 +562,8 @@ def fit_extrinsics(
     fixed: Sequence[str] = (),
     labels: Sequence[str] | None = None,
     min_points: int = _MIN_POINTS,
+    check_mirror: bool = True,
+    check_geometry: bool = True,
 ) -> ExtrinsicsFit:
     """Fit the camera pose ``T_base_cam`` to correspondences.
 
@@ -439,13 +577,20 @@ def fit_extrinsics(
         fixed: pose parameters held at ``initial``: any of ``x y z roll pitch yaw``.
         labels: names of the rows in error messages (e.g. CSV line numbers).
         min_points: fewest rows accepted.
+        check_mirror: refuse data whose y axis looks mirrored (a laser mounted upside down): the points
+            fit far better with ``y → −y``, or, with (nearly) one ``z``, they fit only with the camera
+            upside down below the targets, which is how a mirrored laser looks then.
+        check_geometry: refuse a pose that agrees with none of the points (the kept points typically
+            more than 5° off; not with ``outlier_px``) or that the points do not determine (nearly
+            collinear, all at one azimuth, too few): 1σ above 0.05 m or 0.5° for 0.1° of pixel noise.
 
     Returns:
         The :class:`ExtrinsicsFit`.
 
     Raises:
         CalibrationError: degenerate input (see :func:`check_correspondences`), fixed parameters without
-            ``initial``, or no pose that agrees with enough points.
+            ``initial``, no pose that agrees with enough points, a mirrored y axis, or a pose that the
+            points do not determine.
     """
     W, H = _image_size(image_size)
     p, q = check_correspondences(xyz, uv, image_size=(W, H), labels=labels, min_points=min_points)
@@ -456,6 +601,47 @@ def fit_extrinsics(
     _Model(Pose3.identity(), fixed)  # validates the names
     if outlier_px is not None and not outlier_px > 0:
         raise CalibrationError(f"outlier threshold must be positive, got {outlier_px}")
+    kw: dict[str, Any] = {
+        "initial": initial,
+        "loss": loss,
+        "outlier_px": outlier_px,
+        "fixed": tuple(fixed),
+        "min_points": min_points,
+    }
+    mirror = check_mirror and not fixed and initial is None
+    try:
+        fit = _fit(p, q, W, H, **kw)
+    except CalibrationError:
+        if mirror:
+            _refuse_mirrored(p, q, W, H, None, kw)
+        raise
+    if mirror:
+        _refuse_mirrored(p, q, W, H, fit, kw)
+    if check_geometry:
+        W = fit.image_size[0]
+        if outlier_px is None and fit.sigma_px > W * _MAX_NOISE_DEG / 360.0:
+            raise CalibrationError(
+                f"no camera pose agrees with the points: the best one leaves a typical error of "
+                f"{fit.sigma_px:.0f} px ({fit.sigma_px * 360.0 / W:.1f}°) on the {fit.n - fit.n_outliers} "
+                f"of {fit.n} points it keeps; check that each row's pixel and laser position are of the "
+                "same target at the same moment, the u/v columns, and --image-size"
+            )
+        _refuse_undetermined(fit, p, q, fixed)
+    return fit
+
+
+def _fit(
+    p: FloatArray,
+    q: FloatArray,
+    W: int,
+    H: int,
+    *,
+    initial: Pose3 | None,
+    loss: str,
+    outlier_px: float | None,
+    fixed: Sequence[str],
+    min_points: int,
+) -> ExtrinsicsFit:
     floor = max(2.0, W / 2000.0)
     wide = max(floor, W / 200.0)
 
@@ -475,15 +661,19 @@ def fit_extrinsics(
 
     # 2. outlier rejection + refit until the inlier set settles
     inl = np.ones(len(p), dtype=bool)
+    n_free = len(POSE_PARAMS) - len(set(fixed))
     sigma = math.nan
     thr = math.nan
     cost, nfev = 0.0, 0
     for _ in range(6):
         r = np.linalg.norm(_res(best.R, best.t, p, q, W, H), axis=1)
         sigma = float(np.median(r[inl])) / _RAYLEIGH_MEDIAN
-        thr = float(outlier_px) if outlier_px is not None else max(_OUTLIER_SIGMAS * sigma, floor)
+        # residuals of a fit to few points understate the noise: the 2m residuals keep 2m − k dof
+        dof = 2 * int(inl.sum()) - n_free
+        sigma_noise = sigma * math.sqrt(2 * int(inl.sum()) / dof) if dof > 0 else math.inf
+        thr = float(outlier_px) if outlier_px is not None else max(_OUTLIER_SIGMAS * sigma_noise, floor)
         new = r <= thr
-        need = max(3, min(min_points, _MIN_TRAIN))
+        need = max(3, min(min_points, _MIN_TRAIN, len(p) - 1))
         if new.sum() < need:
             raise CalibrationError(
                 f"no camera pose agrees with enough points: only {int(new.sum())} of {len(p)} are within "
@@ -559,6 +749,8 @@ def cross_validate(
     poses: list[Pose3] = []
     kw = dict(fit_kwargs)
     kw["min_points"] = _MIN_TRAIN
+    kw["check_mirror"] = False  # the full fit checked these; a fold's errors show the rest
+    kw["check_geometry"] = False
     for f in range(k):
         test = fold == f
         train = ~test

@@ -101,6 +101,8 @@ def _extrinsics(args: argparse.Namespace) -> int:
         f"yaw {math.degrees(p['yaw']):+.3f}°"
     )
     print(cv.table())
+    if cv.folds != int(args.folds):
+        print(f"note: {fit.n} points: {cv.folds}-fold cross-validation instead of --folds {args.folds}")
     if fit.n_outliers:
         rej = [labels[i] for i in range(fit.n) if not fit.inliers[i]]
         shown = ", ".join(rej[:12]) + (f" and {len(rej) - 12} more" if len(rej) > 12 else "")
