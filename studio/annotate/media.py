@@ -355,7 +355,7 @@ class RunMedia:
         if rig.camera is not None and rig.camera.pose is not None and self.image_size is not None:
             from studio.geometry import EquirectCamera
 
-            cam = EquirectCamera(self.image_size[0], self.image_size[1], rig.camera.pose)
+            cam = EquirectCamera(*self.image_size[:2], rig.camera.pose, rig.camera.lens_offset)
             p = np.concatenate(pts3) if pts3 else np.zeros((0, 3))
             uv, _ = cam.project(p) if len(p) else (np.zeros((0, 2)), None)
         return FrameScan(xy=xy, uv=uv, topics=idx)

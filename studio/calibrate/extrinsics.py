@@ -14,6 +14,12 @@ point ``p`` is seen at the pixel of the direction ``R^T (p - t)`` where ``(R, t)
 3. the rotation is a rotation vector about the current estimate (no singularity anywhere); with fixed
    rotation parameters it is roll/pitch/yaw so that single angles can be held.
 
+Dual-lens model (``lens_offset``): the panorama of a dual-fisheye camera is seen from two lens centres
+``(±b, 0, 0)`` in the camera frame, the hemisphere ``sign(x_cam)`` choosing the lens
+(:class:`~studio.geometry.equirect.EquirectCamera`). ``b`` is held (default 0: the central camera) or,
+with ``lens_offset=None``, fitted as a 7th parameter after initialising with ``b = 0``;
+:mod:`studio.calibrate.lens` decides whether the dual-lens model pays off.
+
 When every ``z`` is equal (the ``z = 0`` when-unknown convention) the fit is still exact: the camera
 height is then relative to the targets' plane and row errors absorb the target's true height.
 
@@ -149,47 +155,69 @@ def check_correspondences(
 
 
 # ---------------------------------------------------------------------------------------- projection
-def project_points(pose: Pose3, xyz: ArrayLike, *, image_size: tuple[int, int]) -> FloatArray:
+def project_points(
+    pose: Pose3, xyz: ArrayLike, *, image_size: tuple[int, int], lens_offset: float = 0.0
+) -> FloatArray:
     """Panorama pixels of base-frame points.
 
     Args:
         pose: camera pose ``T_base_cam``.
         xyz: ``(N, 3)`` points, metres, base frame.
         image_size: ``(W, H)``, px.
+        lens_offset: dual-lens offset ``b``, metres (0: central camera).
 
     Returns:
         ``(N, 2)`` ``u, v`` px (u in ``[0, W)``; NaN for a point at the camera centre).
     """
     W, H = _image_size(image_size)
-    uv, _ = EquirectCamera(W, H, pose).project(np.asarray(xyz, dtype=np.float64).reshape(-1, 3))
+    uv, _ = EquirectCamera(W, H, pose, lens_offset).project(np.asarray(xyz, dtype=np.float64).reshape(-1, 3))
     return uv
 
 
-def _angles(pose_R: FloatArray, pose_t: FloatArray, xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _cam_dirs(pose_R: FloatArray, pose_t: FloatArray, xyz: FloatArray, b: float) -> FloatArray:
+    """Camera-frame directions ``(N, 3)`` to the points from the lens centre that sees each."""
     pc = (xyz - pose_t) @ pose_R
+    if b:
+        pc[:, 0] -= np.sign(pc[:, 0]) * b
+    return pc
+
+
+def _angles(
+    pose_R: FloatArray, pose_t: FloatArray, xyz: FloatArray, b: float = 0.0
+) -> tuple[FloatArray, FloatArray]:
+    pc = _cam_dirs(pose_R, pose_t, xyz, b)
     return np.arctan2(pc[:, 1], pc[:, 0]), np.arctan2(pc[:, 2], np.hypot(pc[:, 0], pc[:, 1]))
 
 
-def _res(R: FloatArray, t: FloatArray, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> FloatArray:
-    az, el = _angles(R, t, xyz)
+def _res(
+    R: FloatArray, t: FloatArray, xyz: FloatArray, uv: FloatArray, W: int, H: int, b: float = 0.0
+) -> FloatArray:
+    az, el = _angles(R, t, xyz, b)
     u = (0.5 - az / (2 * np.pi)) * W
     v = (0.5 - el / np.pi) * H
     du = np.mod(u - uv[:, 0] + W / 2.0, W) - W / 2.0
     return np.stack([du, v - uv[:, 1]], axis=1)
 
 
-def pixel_residuals(pose: Pose3, xyz: ArrayLike, uv: ArrayLike, *, image_size: tuple[int, int]) -> FloatArray:
-    """Projected minus observed pixels, ``(N, 2)`` px; the column part is wrapped into ``[-W/2, W/2)``."""
+def pixel_residuals(
+    pose: Pose3, xyz: ArrayLike, uv: ArrayLike, *, image_size: tuple[int, int], lens_offset: float = 0.0
+) -> FloatArray:
+    """Projected minus observed pixels, ``(N, 2)`` px; the column part is wrapped into ``[-W/2, W/2)``.
+
+    ``lens_offset`` is the dual-lens offset ``b``, metres (0: central camera).
+    """
     W, H = _image_size(image_size)
     p = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
     q = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
-    return _res(pose.R, pose.t, p, q, W, H)
+    return _res(pose.R, pose.t, p, q, W, H, float(lens_offset))
 
 
-def _angular_error_deg(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> FloatArray:
+def _angular_error_deg(
+    pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int, b: float = 0.0
+) -> FloatArray:
     cam = EquirectCamera(W, H, pose)
     obs = cam.bearing_base(uv)
-    d = xyz - pose.t
+    d = _cam_dirs(pose.R, pose.t, xyz, b) @ pose.R.T if b else xyz - pose.t
     n = np.linalg.norm(d, axis=1, keepdims=True)
     d = d / np.where(n > 0, n, 1.0)
     cross = np.linalg.norm(np.cross(obs, d), axis=1)
@@ -212,6 +240,9 @@ class ExtrinsicsFit:
         threshold_px: residual norm above which a point was rejected, px.
         sigma_px: robust noise scale of the inliers' residual norms, px.
         z_constant: every point has the same ``z`` (camera height is relative to that plane).
+        lens_offset: dual-lens offset ``b``, metres (held or fitted; 0: the central camera).
+        lens_offset_std: 1σ of a fitted ``b`` from the Jacobian at the inliers' noise ``sigma_px``,
+            metres; NaN when ``b`` was held.
     """
 
     pose: Pose3
@@ -224,6 +255,13 @@ class ExtrinsicsFit:
     threshold_px: float = math.nan
     sigma_px: float = math.nan
     z_constant: bool = False
+    lens_offset: float = 0.0
+    lens_offset_std: float = math.nan
+
+    @property
+    def lens_fitted(self) -> bool:
+        """Whether ``lens_offset`` was fitted (not held)."""
+        return not math.isnan(self.lens_offset_std)
 
     def __post_init__(self) -> None:
         n = len(self.inliers)
@@ -300,6 +338,7 @@ class CrossValidation:
             "fold_spread_m": round(spread_m, 5),
             "fold_spread_deg": round(spread_deg, 4),
             "z_constant": bool(self.fit.z_constant),
+            "lens_offset_m": round(self.fit.lens_offset, 6) + 0.0,
         }
 
     def table(self) -> str:
@@ -316,6 +355,13 @@ class CrossValidation:
             f"points {j['n']}, outliers rejected {j['n_outliers']}, "
             f"fold pose spread {j['fold_spread_m'] * 100:.1f} cm / {j['fold_spread_deg']:.2f}°",
         ]
+        if self.fit.lens_offset:
+            std = self.fit.lens_offset_std
+            lines.append(
+                f"dual-lens model: lens centres at (±b, 0, 0) in the camera frame, b = "
+                f"{self.fit.lens_offset * 100:+.2f} cm"
+                + (f" ± {std * 100:.2f} cm" if math.isfinite(std) else "")
+            )
         if j["z_constant"]:
             lines.append(
                 "all points have the same z: the camera z is relative to that plane, and row errors "
@@ -328,7 +374,7 @@ class CrossValidation:
 class _Model:
     """Maps a free-parameter vector to a pose (rotation vector about R0, or roll/pitch/yaw when held)."""
 
-    def __init__(self, start: Pose3, fixed: Sequence[str]) -> None:
+    def __init__(self, start: Pose3, fixed: Sequence[str], *, b0: float = 0.0, fit_b: bool = False) -> None:
         unknown = [f for f in fixed if f not in POSE_PARAMS]
         if unknown:
             raise CalibrationError(f"unknown fixed pose parameter(s) {unknown}; expected {POSE_PARAMS}")
@@ -338,13 +384,20 @@ class _Model:
         rot0 = np.array(start.rpy()) if self.rpy_mode else np.zeros(3)
         self.full0 = np.concatenate([start.t, rot0])
         self.free = np.array([k not in self.fixed for k in POSE_PARAMS])
+        self.b0 = float(b0)
+        self.fit_b = bool(fit_b)
 
     def x0(self) -> FloatArray:
-        return self.full0[self.free].copy()
+        x = self.full0[self.free].copy()
+        return np.append(x, self.b0) if self.fit_b else x
+
+    def lens(self, x: FloatArray) -> float:
+        """The lens offset ``b`` of a parameter vector (the last entry when fitted), metres."""
+        return float(x[-1]) if self.fit_b else self.b0
 
     def pose_parts(self, x: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = self.full0.copy()
-        full[self.free] = x
+        full[self.free] = x[:-1] if self.fit_b else x
         if self.rpy_mode:
             R = rot_from_rpy(*full[3:])
         else:
@@ -364,15 +417,18 @@ def _refine(
     f_scale: float,
     max_nfev: int,
     tol: float = 1e-12,
-) -> tuple[Pose3, float, int]:
-    model = _Model(start, fixed)
+    b: float = 0.0,
+    fit_b: bool = False,
+) -> tuple[Pose3, float, float, int]:
+    """Least-squares refinement; returns the pose, the lens offset, the cost and the evaluations."""
+    model = _Model(start, fixed, b0=b, fit_b=fit_b)
     x0 = model.x0()
     if x0.size == 0:
-        return start, 0.0, 0
+        return start, b, 0.0, 0
 
     def fun(x: FloatArray) -> FloatArray:
         R, t = model.pose_parts(x)
-        return _res(R, t, xyz, uv, W, H).ravel()
+        return _res(R, t, xyz, uv, W, H, model.lens(x)).ravel()
 
     try:
         sol = least_squares(
@@ -389,7 +445,7 @@ def _refine(
     except ValueError as exc:
         raise CalibrationError(f"least-squares fit failed: {exc}") from None
     R, t = model.pose_parts(sol.x)
-    return Pose3(R, t), float(sol.cost), int(sol.nfev)
+    return Pose3(R, t), model.lens(sol.x), float(sol.cost), int(sol.nfev)
 
 
 def _wahba(obs: FloatArray, tgt: FloatArray) -> FloatArray:
@@ -416,8 +472,8 @@ def _candidates(xyz: FloatArray, uv: FloatArray, W: int, H: int) -> list[Pose3]:
     return out
 
 
-def _median_norm(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int) -> float:
-    r = np.linalg.norm(_res(pose.R, pose.t, xyz, uv, W, H), axis=1)
+def _median_norm(pose: Pose3, xyz: FloatArray, uv: FloatArray, W: int, H: int, b: float = 0.0) -> float:
+    r = np.linalg.norm(_res(pose.R, pose.t, xyz, uv, W, H, b), axis=1)
     return float(np.nanmedian(r)) if np.isfinite(r).any() else math.inf
 
 
@@ -492,7 +548,7 @@ def _pose_std(fit: ExtrinsicsFit, p: FloatArray, q: FloatArray, fixed: Sequence[
 
     def f(x: FloatArray) -> FloatArray:
         R, t = model.pose_parts(x)
-        return _res(R, t, p[m], q[m], W, H).ravel()
+        return _res(R, t, p[m], q[m], W, H, fit.lens_offset).ravel()
 
     r0 = f(x0)
     J = np.empty((r0.size, x0.size))
@@ -564,6 +620,7 @@ def fit_extrinsics(
     min_points: int = _MIN_POINTS,
     check_mirror: bool = True,
     check_geometry: bool = True,
+    lens_offset: float | None = 0.0,
 ) -> ExtrinsicsFit:
     """Fit the camera pose ``T_base_cam`` to correspondences.
 
@@ -583,6 +640,9 @@ def fit_extrinsics(
         check_geometry: refuse a pose that agrees with none of the points (the kept points typically
             more than 5° off; not with ``outlier_px``) or that the points do not determine (nearly
             collinear, all at one azimuth, too few): 1σ above 0.05 m or 0.5° for 0.1° of pixel noise.
+        lens_offset: the dual-lens offset ``b`` (metres, ``|b| < 0.2``) held during the fit; 0 is the
+            central camera; None fits it as a 7th parameter (started at 0 after the outlier-robust
+            initialisation), with its 1σ in ``lens_offset_std``.
 
     Returns:
         The :class:`ExtrinsicsFit`.
@@ -601,7 +661,10 @@ def fit_extrinsics(
     _Model(Pose3.identity(), fixed)  # validates the names
     if outlier_px is not None and not outlier_px > 0:
         raise CalibrationError(f"outlier threshold must be positive, got {outlier_px}")
+    if lens_offset is not None and not (math.isfinite(lens_offset) and abs(lens_offset) < 0.2):
+        raise CalibrationError(f"lens offset must be a finite number within ±0.2 m, got {lens_offset}")
     kw: dict[str, Any] = {
+        "lens_offset": lens_offset,
         "initial": initial,
         "loss": loss,
         "outlier_px": outlier_px,
@@ -641,32 +704,37 @@ def _fit(
     outlier_px: float | None,
     fixed: Sequence[str],
     min_points: int,
+    lens_offset: float | None = 0.0,
 ) -> ExtrinsicsFit:
     floor = max(2.0, W / 2000.0)
+    fit_b = lens_offset is None
+    b = 0.0 if lens_offset is None else float(lens_offset)
     wide = max(floor, W / 200.0)
 
     # 1. robust start
     if initial is not None and fixed:
-        best, _, _ = _refine(initial, p, q, W, H, fixed=fixed, loss="soft_l1", f_scale=wide, max_nfev=200)
+        best, _, _, _ = _refine(
+            initial, p, q, W, H, fixed=fixed, loss="soft_l1", f_scale=wide, max_nfev=200, b=b
+        )
     else:
         cands = _candidates(p, q, W, H) + ([initial] if initial is not None else [])
-        scored = sorted(cands, key=lambda c: _median_norm(c, p, q, W, H))
+        scored = sorted(cands, key=lambda c: _median_norm(c, p, q, W, H, b))
         tried = []
         for c in scored[:4] + ([initial] if initial is not None else []):
-            pose, _, _ = _refine(
-                c, p, q, W, H, fixed=(), loss="soft_l1", f_scale=wide, max_nfev=100, tol=1e-8
+            pose, _, _, _ = _refine(
+                c, p, q, W, H, fixed=(), loss="soft_l1", f_scale=wide, max_nfev=100, tol=1e-8, b=b
             )
-            tried.append((_median_norm(pose, p, q, W, H), pose))
+            tried.append((_median_norm(pose, p, q, W, H, b), pose))
         best = min(tried, key=lambda a: a[0])[1]
 
     # 2. outlier rejection + refit until the inlier set settles
     inl = np.ones(len(p), dtype=bool)
-    n_free = len(POSE_PARAMS) - len(set(fixed))
+    n_free = len(POSE_PARAMS) - len(set(fixed)) + int(fit_b)
     sigma = math.nan
     thr = math.nan
     cost, nfev = 0.0, 0
     for _ in range(6):
-        r = np.linalg.norm(_res(best.R, best.t, p, q, W, H), axis=1)
+        r = np.linalg.norm(_res(best.R, best.t, p, q, W, H, b), axis=1)
         sigma = float(np.median(r[inl])) / _RAYLEIGH_MEDIAN
         # residuals of a fit to few points understate the noise: the 2m residuals keep 2m − k dof
         dof = 2 * int(inl.sum()) - n_free
@@ -680,27 +748,54 @@ def _fit(
                 f"{thr:.1f} px of the best pose (are u/v columns swapped, or --image-size wrong?)"
             )
         fs = max(2.0 * sigma, 0.5) if outlier_px is None else max(float(outlier_px) / 3.0, 0.5)
-        best, cost, nfev = _refine(
-            best, p[new], q[new], W, H, fixed=fixed, loss=loss, f_scale=fs, max_nfev=300
+        best, b, cost, nfev = _refine(
+            best, p[new], q[new], W, H, fixed=fixed, loss=loss, f_scale=fs, max_nfev=300, b=b, fit_b=fit_b
         )
         if np.array_equal(new, inl):
             break
         inl = new
-    res = _res(best.R, best.t, p, q, W, H)
+    res = _res(best.R, best.t, p, q, W, H, b)
     r = np.linalg.norm(res, axis=1)
     sigma = float(np.median(r[inl])) / _RAYLEIGH_MEDIAN
+    b_std = _lens_std(best, b, p[inl], q[inl], W, H, fixed, sigma) if fit_b else math.nan
     return ExtrinsicsFit(
         pose=best,
         inliers=inl,
         residual_px=res,
-        ang_err_deg=_angular_error_deg(best, p, q, W, H),
+        ang_err_deg=_angular_error_deg(best, p, q, W, H, b),
         cost=cost,
         n_iter=nfev,
         image_size=(W, H),
         threshold_px=thr,
         sigma_px=sigma,
         z_constant=bool(np.ptp(p[:, 2]) < 1e-9),
+        lens_offset=b + 0.0,
+        lens_offset_std=b_std,
     )
+
+
+def _lens_std(
+    pose: Pose3, b: float, p: FloatArray, q: FloatArray, W: int, H: int, fixed: Sequence[str], sigma: float
+) -> float:
+    """1σ of a fitted lens offset (metres) from the Jacobian of all free parameters, ``sigma`` px noise."""
+    model = _Model(pose, fixed, b0=b, fit_b=True)
+    x0 = model.x0()
+
+    def f(x: FloatArray) -> FloatArray:
+        R, t = model.pose_parts(x)
+        return _res(R, t, p, q, W, H, model.lens(x)).ravel()
+
+    J = np.empty((2 * len(p), x0.size))
+    for k in range(x0.size):
+        dx = np.zeros_like(x0)
+        dx[k] = 1e-6
+        J[:, k] = (f(x0 + dx) - f(x0 - dx)) / 2e-6
+    dof = J.shape[0] - J.shape[1]
+    if dof <= 0 or np.linalg.cond(J) > 1e12:
+        return math.inf
+    s2 = max(float(sigma), 1e-3) ** 2 * J.shape[0] / dof  # per-component noise, few-points corrected
+    var = float(np.linalg.inv(J.T @ J)[-1, -1]) * s2
+    return math.sqrt(var) if var >= 0 and math.isfinite(var) else math.inf
 
 
 def cross_validate(
@@ -759,9 +854,9 @@ def cross_validate(
         except CalibrationError as exc:
             raise CalibrationError(f"cross-validation fold {f + 1} of {k}: {exc}") from None
         poses.append(fit.pose)
-        res = _res(fit.pose.R, fit.pose.t, p[test], q[test], W, H)
+        res = _res(fit.pose.R, fit.pose.t, p[test], q[test], W, H, fit.lens_offset)
         col[test], row[test] = res[:, 0], res[:, 1]
-        ang[test] = _angular_error_deg(fit.pose, p[test], q[test], W, H)
+        ang[test] = _angular_error_deg(fit.pose, p[test], q[test], W, H, fit.lens_offset)
     return CrossValidation(
         fit=full, col_err_px=col, row_err_px=row, ang_err_deg=ang, fold=fold, fold_poses=tuple(poses)
     )

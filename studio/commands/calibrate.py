@@ -2,11 +2,15 @@
 :mod:`studio.commands.calibrate_targets` and :mod:`studio.commands.calibrate_people`.
 
 * ``extrinsics --correspondences FILE.csv --image-size WxH [--folds K] [--json OUT] --out calib.yaml``:
-  fits the camera pose, prints the cross-validated errors, writes ``calib.yaml`` (a rig fragment:
-  ``camera.pose`` + a ``calibration`` block) and ``<out stem>_report.txt`` / ``_report.png`` /
-  ``_report.rrd`` (Rerun, for ``studio view FILE --blueprint calibration``) beside it.
+  fits the camera pose with the central and the dual-lens camera model, prints both models'
+  cross-validated errors and keeps the dual-lens one only when it pays off
+  (:mod:`studio.calibrate.lens`), writes ``calib.yaml`` (a rig fragment: ``camera.pose``,
+  ``camera.lens_offset`` when the dual-lens model is kept, + a ``calibration`` block) and
+  ``<out stem>_report.txt`` / ``_report.png`` / ``_report.rrd`` (Rerun, for
+  ``studio view FILE --blueprint calibration``) beside it.
 * ``project --rig RIG_OR_CALIB.yaml --points FILE.csv --image-size WxH --out UV.csv``: projects ``x,y,z``
-  rows with the camera pose of a rig.yaml or a calib.yaml and writes ``u,v`` in the same order.
+  rows with the camera (pose and lens offset) of a rig.yaml or a calib.yaml and writes ``u,v`` in the same
+  order.
 
 Every input problem raises a :class:`~studio.errors.StudioError` before any file is written.
 """
@@ -25,7 +29,7 @@ import yaml
 from studio.atomic import atomic_write_text
 from studio.errors import StudioError
 
-__all__ = ["load_camera_pose", "run"]
+__all__ = ["load_camera", "load_camera_pose", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,7 +62,7 @@ def _out_file(path: str, option: str) -> Path:
 
 def _extrinsics(args: argparse.Namespace) -> int:
     from studio.calibrate.csvio import read_columns
-    from studio.calibrate.extrinsics import cross_validate
+    from studio.calibrate.lens import choose_lens_model
     from studio.calibrate.report import write_report
     from studio.viz.calibration import write_calibration_rrd
 
@@ -70,21 +74,28 @@ def _extrinsics(args: argparse.Namespace) -> int:
     table = read_columns(args.correspondences, ("x", "y", "z", "u", "v"), optional=("z",))
     xyz, uv = table.values[:, :3], table.values[:, 3:]
     labels = table.labels()
-    cv = cross_validate(xyz, uv, image_size=(W, H), folds=int(args.folds), labels=labels)
+    choice = choose_lens_model(xyz, uv, image_size=(W, H), folds=int(args.folds), labels=labels)
+    cv = choice.kept
     fit = cv.fit
-    metrics = cv.to_json()
+    metrics = choice.to_json()
     pose = {k: round(v, 6) + 0.0 for k, v in fit.pose.as_dict().items()}
+    camera: dict[str, Any] = {"pose": pose}
+    model = "spherical model"
+    if choice.dual_kept:
+        camera["lens_offset"] = round(fit.lens_offset, 6) + 0.0
+        model = "dual-lens spherical model, lens offset fitted"
     calib: dict[str, Any] = {
-        "camera": {"pose": pose},
+        "camera": camera,
         "calibration": {
-            "method": "extrinsics from correspondences (spherical model, robust least squares)",
+            "method": f"extrinsics from correspondences ({model}, robust least squares)",
             "correspondences": str(args.correspondences),
             "image_size": [int(W), int(H)],
             "n": fit.n,
             "n_outliers": fit.n_outliers,
             "outlier_threshold_px": round(fit.threshold_px, 3),
             "z_constant": fit.z_constant,
-            "cross_validation": {k: v for k, v in metrics.items() if k != "z_constant"},
+            "lens_model": choice.reason,
+            "cross_validation": {k: v for k, v in metrics.items() if k not in ("z_constant", "lens_model")},
             "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         },
     }
@@ -101,6 +112,7 @@ def _extrinsics(args: argparse.Namespace) -> int:
         f"yaw {math.degrees(p['yaw']):+.3f}°"
     )
     print(cv.table())
+    print(_lens_table(choice))
     if cv.folds != int(args.folds):
         print(f"note: {fit.n} points: {cv.folds}-fold cross-validation instead of --folds {args.folds}")
     if fit.n_outliers:
@@ -127,8 +139,40 @@ def _extrinsics(args: argparse.Namespace) -> int:
     return 0
 
 
+def _lens_table(choice: Any) -> str:
+    """Both lens models' held-out column errors, the kept one marked, and the reason."""
+    head = "lens model (held-out column px)"
+    lines = [f"{head:<38} {'mean':>8} {'median':>8}"]
+    rows = [("central (one centre)", choice.single, not choice.dual_kept)]
+    if choice.dual is not None:
+        f = choice.dual.fit
+        rows.append(
+            (
+                f"dual-lens b {f.lens_offset * 100:+.2f}±{f.lens_offset_std * 100:.2f} cm",
+                choice.dual,
+                choice.dual_kept,
+            )
+        )
+    for name, cv, kept in rows:
+        j = cv.to_json()
+        lines.append(
+            f"{name:<38} {j['col_px_mean']:>8.2f} {j['col_px_median']:>8.2f}" + ("  <- kept" if kept else "")
+        )
+    lines.append(choice.reason)
+    return "\n".join(lines)
+
+
 def load_camera_pose(path: str) -> Any:
     """The camera pose ``T_base_cam`` (:class:`~studio.geometry.se.Pose3`) of a rig.yaml or calib.yaml.
+
+    Raises:
+        StudioError: missing/unreadable file, invalid YAML or rig, no camera pose.
+    """
+    return load_camera(path).pose
+
+
+def load_camera(path: str) -> Any:
+    """The camera (:class:`~studio.io.rig.CameraConfig`: pose, lens offset) of a rig.yaml or calib.yaml.
 
     Raises:
         StudioError: missing/unreadable file, invalid YAML or rig, no camera pose.
@@ -156,7 +200,7 @@ def load_camera_pose(path: str) -> Any:
     rig = parse_rig(data, source=str(p))
     if rig.camera is None or rig.camera.pose is None:
         raise StudioError(f"{p}: the rig has no camera pose ('camera.pose'); calibrate it first")
-    return rig.camera.pose
+    return rig.camera
 
 
 def _project(args: argparse.Namespace) -> int:
@@ -166,10 +210,10 @@ def _project(args: argparse.Namespace) -> int:
     from studio.calibrate.extrinsics import project_points
 
     out = _out_file(args.out, "--out")
-    pose = load_camera_pose(args.rig)
+    cam = load_camera(args.rig)
     xyz = read_points(args.points)
     W, H = args.image_size
-    uv = project_points(pose, xyz, image_size=(W, H))
+    uv = project_points(cam.pose, xyz, image_size=(W, H), lens_offset=cam.lens_offset)
     try:
         write_uv(out, uv)
     except OSError as exc:

@@ -5,6 +5,13 @@ Camera frame
     azimuth ``az = atan2(y, x)`` (radians, counter-clockwise, left positive, in [-π, π)) and elevation
     ``el = atan2(z, hypot(x, y))`` (radians, up positive, in [-π/2, π/2]).
 
+Lens centres
+    The camera is central by default (every ray starts at the origin). With a lens offset ``b`` (metres,
+    :class:`~studio.geometry.equirect.EquirectCamera`'s ``lens_offset``, rig.yaml ``camera.lens_offset``)
+    it models a dual-fisheye camera: the front lens centre at ``(+b, 0, 0)``, the back one at
+    ``(−b, 0, 0)``; a point ``(x, y, z)`` is seen along ``(x − sign(x)·b, y, z)`` and a pixel's ray starts
+    at ``(sign(ray_x)·b, 0, 0)``. The angle/pixel functions below are about directions only.
+
 Equirectangular pixels
     Continuous coordinates measured from the left/top edge of the image: pixel ``(i, j)`` (column, row)
     covers ``[i, i+1) × [j, j+1)`` and its centre is ``(i + 0.5, j + 0.5)``. For an image ``W × H``::

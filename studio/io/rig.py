@@ -7,13 +7,16 @@ Example::
     camera:
       topic: /theta_camera/image/compressed
       pose: {x: 0.0, y: 0.0, z: 1.15, roll: 0.0, pitch: 0.0, yaw: 0.0}
+      lens_offset: 0.013              # optional, metres: dual-lens parallax (default 0, central camera)
     lasers:
       - topic: /scan_front
         pose: {x: 0.35, y: 0.0, z: 0.30, yaw: 0.0}
     sync: {max_dt_s: 0.05, camera_latency_s: 0.0}
 
 Poses are metres and radians in ``base_frame``; missing pose keys are 0. A sensor without ``pose`` takes
-its pose from the TF tree of the recording.
+its pose from the TF tree of the recording. ``camera.lens_offset`` (metres, ``|b| < 0.2``) puts the two
+lens centres of a dual-fisheye camera at ``(±b, 0, 0)`` in the camera frame
+(:class:`~studio.geometry.equirect.EquirectCamera`); it is written only when non-zero.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from studio.geometry.se import Pose3
 from studio.io.errors import RigError
 
 __all__ = [
+    "MAX_LENS_OFFSET_M",
     "CameraConfig",
     "LaserConfig",
     "OdometryConfig",
@@ -42,6 +46,7 @@ __all__ = [
 ]
 
 _POSE_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+MAX_LENS_OFFSET_M = 0.2  # largest |camera.lens_offset| accepted, metres
 
 
 def _norm_frame(name: str) -> str:
@@ -69,10 +74,26 @@ class OdometryConfig:
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """The 360° camera: image topic (CompressedImage or Image) and pose T_base_camera (None → from TF)."""
+    """The 360° camera.
+
+    Attributes:
+        topic: image topic (CompressedImage or Image).
+        pose: T_base_camera (None → from TF).
+        lens_offset: dual-lens parallax ``b``, metres: lens centres at ``(±b, 0, 0)`` in the camera frame
+            (0: a central camera); finite, ``|b| < 0.2``.
+    """
 
     topic: str
     pose: Pose3 | None = None
+    lens_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        b = self.lens_offset
+        if isinstance(b, bool) or not isinstance(b, int | float) or not math.isfinite(b):
+            raise ValueError(f"lens_offset must be a finite number (metres), got {b!r}")
+        if abs(b) >= MAX_LENS_OFFSET_M:
+            raise ValueError(f"lens_offset must be within ±{MAX_LENS_OFFSET_M} m, got {b}")
+        object.__setattr__(self, "lens_offset", float(b))
 
 
 @dataclass(frozen=True)
@@ -152,6 +173,8 @@ class Rig:
             cam: dict[str, Any] = {"topic": self.camera.topic}
             if self.camera.pose is not None:
                 cam["pose"] = _pose_dict(self.camera.pose)
+            if self.camera.lens_offset:
+                cam["lens_offset"] = round(self.camera.lens_offset, 12) + 0.0
             d["camera"] = cam
         lasers = []
         for laser in self.lasers:
@@ -239,9 +262,16 @@ def parse_rig(data: Any, *, source: str = "rig") -> Rig:
 
     camera = None
     if top.get("camera") is not None:
-        cm = c.mapping(top["camera"], "camera", ("topic", "pose"), ("topic",))
+        cm = c.mapping(top["camera"], "camera", ("topic", "pose", "lens_offset"), ("topic",))
         pose = c.pose(cm["pose"], "camera.pose") if cm.get("pose") is not None else None
-        camera = CameraConfig(topic=c.string(cm["topic"], "camera.topic"), pose=pose)
+        lens = c.number(cm.get("lens_offset", 0.0), "camera.lens_offset")
+        if abs(lens) >= MAX_LENS_OFFSET_M:
+            raise c.fail(
+                "camera.lens_offset",
+                f"must be within ±{MAX_LENS_OFFSET_M} m (the lens centres' offset from the camera "
+                f"centre), got {lens}",
+            )
+        camera = CameraConfig(topic=c.string(cm["topic"], "camera.topic"), pose=pose, lens_offset=lens)
 
     lasers: list[LaserConfig] = []
     raw_lasers = top.get("lasers")

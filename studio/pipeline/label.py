@@ -472,7 +472,7 @@ def label_recording(
         if rig.camera.pose is None:
             notes.append("the camera pose is neither in the rig nor in the bag's TF: identity assumed")
         pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
-        camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose)
+        camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose, rig.camera.lens_offset)
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts)
     t2 = time.perf_counter()

@@ -149,7 +149,7 @@ def label_thesis(
                 if camera is None:
                     size = (pano.shape[1], pano.shape[0])
                     pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
-                    camera = EquirectCamera(pano.shape[1], pano.shape[0], pose)
+                    camera = EquirectCamera(pano.shape[1], pano.shape[0], pose, rig.camera.lens_offset)
                     all_faces = cube_faces(max(32, pano.shape[1] // 4))
                     faces = [all_faces[n] for n in _FACE_ORDER]
                 for img in renderer.render_many(pano, faces):

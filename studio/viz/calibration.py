@@ -51,8 +51,11 @@ def _face_points(
     pose: Pose3,
     xyz: NDArray[np.float64],
     color: tuple[int, int, int],
+    lens_offset: float = 0.0,
 ) -> None:
     p_cam = pose.inverse().apply(xyz)
+    if lens_offset:  # the dual-lens model (studio.geometry.equirect): seen from the nearer lens centre
+        p_cam[:, 0] -= np.sign(p_cam[:, 0]) * lens_offset
     uv = face.pixel_of_rays(p_cam)
     ok = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] < face.width)
     ok &= (uv[:, 1] >= 0) & (uv[:, 1] < face.height)
@@ -103,7 +106,8 @@ def log_calibration(
         f"{scan}/frame", rr.Boxes2D(mins=[[0.0, 0.0]], sizes=[[W, H]], colors=[(120, 120, 120)]), static=True
     )
     rec.log(f"{scan}/observed", rr.Points2D(q, colors=colors, radii=[1.5 * px], labels=labels), static=True)
-    after = project_points(fit.pose, p, image_size=(W, H))
+    lens = float(getattr(fit, "lens_offset", 0.0) or 0.0)
+    after = project_points(fit.pose, p, image_size=(W, H), lens_offset=lens)
     rec.log(f"{scan}/projected", rr.Points2D(after, colors=[_AFTER], radii=[px]), static=True)
     if before is not None:
         pb = project_points(before, p, image_size=(W, H))
@@ -120,7 +124,7 @@ def log_calibration(
             ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])
             if ok:
                 rec.log(path, rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"), static=True)
-            _face_points(rec, f"{path}/scan/after", face, fit.pose, p, _AFTER)
+            _face_points(rec, f"{path}/scan/after", face, fit.pose, p, _AFTER, lens)
             if before is not None:
                 _face_points(rec, f"{path}/scan/before", face, before, p, _BEFORE)
 

@@ -266,7 +266,7 @@ class RunLogger:
         if self._camera is None or (self._camera.width, self._camera.height) != (W, H):
             cam_cfg = self.rig.camera
             pose = cam_cfg.pose if cam_cfg is not None and cam_cfg.pose is not None else Pose3.identity()
-            self._camera = EquirectCamera(W, H, pose)
+            self._camera = EquirectCamera(W, H, pose, cam_cfg.lens_offset if cam_cfg is not None else 0.0)
             all_faces = cube_faces(self.face_size)
             self._faces = [all_faces[n] for n in ep.FACE_NAMES]
             self._log_panorama_style(W)

@@ -110,6 +110,10 @@ def test_laser_only_rig_and_defaults(tmp_path: Path) -> None:
         ),
         ("base_frame: b\nlasers: [{topic: /s}\n", "not valid YAML"),
         ("base_frame: b\nlasers: [{topic: /s, pose: {yaw: true}}]\n", "must be a finite number"),
+        ("base_frame: b\ncamera: {topic: /c, lens_offset: .inf}\n", "'camera.lens_offset' must be a finite"),
+        ("base_frame: b\ncamera: {topic: /c, lens_offset: '1cm'}\n", "'camera.lens_offset' must be a finite"),
+        ("base_frame: b\ncamera: {topic: /c, lens_offset: 0.25}\n", "'camera.lens_offset' must be within"),
+        ("base_frame: b\ncamera: {topic: /c, lens_offset: -0.2}\n", "'camera.lens_offset' must be within"),
     ],
 )
 def test_bad_rigs(tmp_path: Path, text: str, match: str) -> None:
@@ -134,3 +138,29 @@ def test_calibration_block_of_studio_calibrate_is_accepted(tmp_path: Path) -> No
     p.write_text(DESIGN_EXAMPLE + "calibratoin: {}\n")
     with pytest.raises(RigError, match="calibratoin"):
         load_rig(p)
+
+
+def test_lens_offset_default_round_trip_and_saved_only_when_set(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text(DESIGN_EXAMPLE)
+    rig = load_rig(p)
+    assert rig.camera is not None
+    assert rig.camera.lens_offset == 0.0
+    save_rig(rig, tmp_path / "plain.yaml")
+    assert "lens_offset" not in (tmp_path / "plain.yaml").read_text()
+    p.write_text(DESIGN_EXAMPLE.replace("   # in base_frame", "\n  lens_offset: -0.013  #"))
+    rig = load_rig(p)
+    assert rig.camera is not None
+    assert rig.camera.lens_offset == -0.013
+    save_rig(rig, tmp_path / "dual.yaml")
+    assert "lens_offset: -0.013" in (tmp_path / "dual.yaml").read_text()
+    back = load_rig(tmp_path / "dual.yaml")
+    assert back.camera is not None
+    assert back.camera.lens_offset == -0.013
+    assert back.to_dict() == rig.to_dict()
+
+
+@pytest.mark.parametrize("bad", [float("nan"), 0.2, -1.0, True])
+def test_camera_config_rejects_bad_lens_offset(bad: float) -> None:
+    with pytest.raises(ValueError, match="lens_offset"):
+        CameraConfig("/cam", None, bad)
