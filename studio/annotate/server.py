@@ -26,25 +26,18 @@ Endpoints::
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import re
-import socket
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fastapi import FastAPI, Request
-from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, Response
-from starlette.exceptions import HTTPException as StarletteHTTPException
-
 from studio.annotate.media import MediaError, RunMedia
 from studio.errors import StudioError
 
-__all__ = ["AnnotateServer", "ServerError", "bind_socket", "create_app", "make_server"]
+__all__ = ["AnnotateServer", "ApiError", "ServerError"]
 
 STATIC_DIR = Path(__file__).with_name("static")
 STATIC_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript", ".css": "text/css"}
@@ -58,7 +51,7 @@ class ServerError(StudioError):
 
 
 @dataclass
-class _ApiError(Exception):
+class ApiError(Exception):
     """An HTTP error answered as ``{"error": message}``."""
 
     status: int
@@ -68,12 +61,12 @@ class _ApiError(Exception):
 
 def _int_param(value: Any, what: str) -> int:
     if isinstance(value, bool):
-        raise _ApiError(400, f"{what} must be an integer, got {value!r}")
+        raise ApiError(400, f"{what} must be an integer, got {value!r}")
     if isinstance(value, int):
         return value
     text = str(value)
     if not re.fullmatch(r"-?[0-9]{1,19}", text):  # not "1_0", "+1", " 1", "١"
-        raise _ApiError(400, f"{what} must be an integer, got {value!r}")
+        raise ApiError(400, f"{what} must be an integer, got {value!r}")
     return int(text)
 
 
@@ -139,7 +132,7 @@ class AnnotateServer:
         k = _int_param(n, "frame")
         if k not in self._frame_set:
             last = self.frame_ids[-1] if self.frame_ids else -1
-            raise _ApiError(404, f"unknown frame {k} (this run has frames 0..{last})")
+            raise ApiError(404, f"unknown frame {k} (this run has frames 0..{last})")
         return k
 
     def camera(self) -> Any:
@@ -152,7 +145,7 @@ class AnnotateServer:
 
                 pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
                 w, h = self.media.image_size
-                self._camera = EquirectCamera(w, h, pose)
+                self._camera = EquirectCamera(w, h, pose, rig.camera.lens_offset)
         return self._camera
 
     def _people_json(self, frame: Any, who: dict[int, Any] | None = None) -> list[dict[str, Any]]:
@@ -341,20 +334,20 @@ class AnnotateServer:
         k = self.check_frame(n)
         stamp = self.auto[k].stamp_ns
         if not self.media.has_camera:
-            raise _ApiError(404, "this run has no camera (laser-only): no panorama")
+            raise ApiError(404, "this run has no camera (laser-only): no panorama")
         if stamp is None:
-            raise _ApiError(404, f"frame {k} has no stamp_ns: cannot find its image")
+            raise ApiError(404, f"frame {k} has no stamp_ns: cannot find its image")
         try:
             return self.media.panorama_jpeg(k, int(stamp))
         except MediaError as exc:
-            raise _ApiError(404, str(exc)) from None
+            raise ApiError(404, str(exc)) from None
 
     def apply(self, body: Any, kind: str) -> dict[str, Any]:
         from studio.annotate.log import check_name
         from studio.annotate.store import AnnotationError, ConflictError
 
         if not isinstance(body, dict):
-            raise _ApiError(400, "the request body must be a JSON object")
+            raise ApiError(400, "the request body must be a JSON object")
         base_rev = body.get("base_rev")
         if base_rev is not None:
             base_rev = _int_param(base_rev, "base_rev")
@@ -362,7 +355,7 @@ class AnnotateServer:
             client = check_name(body.get("client"), "client")
             author = check_name(body.get("author") or self.author, "author")
         except AnnotationError as exc:
-            raise _ApiError(400, str(exc)) from None
+            raise ApiError(400, str(exc)) from None
         with self.lock:
             try:
                 if kind == "op":
@@ -370,16 +363,16 @@ class AnnotateServer:
                     if isinstance(op, str):  # the op's own keys at the top level
                         op = {k: v for k, v in body.items() if k not in ("base_rev", "client", "author")}
                     if not isinstance(op, dict):
-                        raise _ApiError(400, 'expected {"op": {"op": "move", ...}, "base_rev": N}')
+                        raise ApiError(400, 'expected {"op": {"op": "move", ...}, "base_rev": N}')
                     res = self.store.apply(op, base_rev=base_rev, author=author, client=client)
                 elif kind == "undo":
                     res = self.store.undo(base_rev=base_rev, author=author, client=client)
                 else:
                     res = self.store.redo(base_rev=base_rev, author=author, client=client)
             except ConflictError as exc:
-                raise _ApiError(409, str(exc), {"rev": self.store.rev}) from None
+                raise ApiError(409, str(exc), {"rev": self.store.rev}) from None
             except AnnotationError as exc:
-                raise _ApiError(422, str(exc), {"rev": self.store.rev}) from None
+                raise ApiError(422, str(exc), {"rev": self.store.rev}) from None
             frames = sorted(int(f) for f in res.frames)
             out = {"rev": res.rev, "frames": frames, "op": res.op}
         if self.on_change is not None and frames:
@@ -391,7 +384,7 @@ class AnnotateServer:
         f = None if frame in (None, "") else self.check_frame(frame)
         lim = 50 if limit in (None, "") else _int_param(limit, "limit")
         if not 1 <= lim <= 1000:
-            raise _ApiError(400, f"limit must be 1..1000, got {lim}")
+            raise ApiError(400, f"limit must be 1..1000, got {lim}")
         with self.lock:
             return {"rev": self.store.rev, "history": self.store.history(frame=f, limit=lim)}
 
@@ -418,11 +411,11 @@ class AnnotateServer:
 
     def next_frame(self, kind: Any, start: Any, direction: Any, wait: Any = None) -> dict[str, Any]:
         if kind not in ("flag", "unreviewed"):
-            raise _ApiError(400, f"kind must be 'flag' or 'unreviewed', got {kind!r}")
+            raise ApiError(400, f"kind must be 'flag' or 'unreviewed', got {kind!r}")
         k = self.check_frame(start)
         step = 1 if direction in (None, "", "1", 1) else -1 if direction in ("-1", -1) else 0
         if step == 0:
-            raise _ApiError(400, f"dir must be 1 or -1, got {direction!r}")
+            raise ApiError(400, f"dir must be 1 or -1, got {direction!r}")
         if kind == "flag":
             pool = set(self.flags(wait_s=_wait_param(wait) or 5.0)[0])
         else:
@@ -441,182 +434,7 @@ def _wait_param(value: Any) -> float:
     try:
         w = float(value)
     except (TypeError, ValueError):
-        raise _ApiError(400, f"wait must be a number of seconds, got {value!r}") from None
+        raise ApiError(400, f"wait must be a number of seconds, got {value!r}") from None
     if not 0 <= w <= 60:
-        raise _ApiError(400, f"wait must be 0..60 s, got {w}")
+        raise ApiError(400, f"wait must be 0..60 s, got {w}")
     return w
-
-
-def _json_error(status: int, message: str, extra: dict[str, Any] | None = None) -> Any:
-    return JSONResponse({"error": message, **(extra or {})}, status_code=status)
-
-
-def create_app(state: AnnotateServer) -> Any:
-    """The FastAPI application serving ``state`` (see the module doc for the endpoints)."""
-    app = FastAPI(title="studio annotate", docs_url=None, redoc_url=None, openapi_url=None)
-    static_names = {p.name for p in STATIC_DIR.iterdir() if p.is_file() and p.suffix in STATIC_TYPES}
-
-    @app.exception_handler(_ApiError)
-    async def _api_error(_: Request, exc: _ApiError) -> Any:
-        return _json_error(exc.status, exc.message, exc.extra)
-
-    @app.exception_handler(StarletteHTTPException)
-    async def _http_error(request: Request, exc: StarletteHTTPException) -> Any:
-        msg = f"no such page: {request.url.path}" if exc.status_code == 404 else str(exc.detail)
-        return _json_error(exc.status_code, msg)
-
-    @app.exception_handler(RequestValidationError)
-    async def _bad_request(_: Request, exc: RequestValidationError) -> Any:
-        errs = exc.errors()
-        where = ".".join(str(x) for x in errs[0].get("loc", ())) if errs else ""
-        return _json_error(400, f"bad request ({where}): {errs[0].get('msg') if errs else exc}")
-
-    @app.exception_handler(StudioError)
-    async def _studio_error(_: Request, exc: StudioError) -> Any:
-        return _json_error(422, str(exc))
-
-    def _static(name: str) -> Response:
-        if name not in static_names:  # a fixed list: no path is ever built from the request
-            raise _ApiError(404, f"no such file: {name}")
-        path = STATIC_DIR / name
-        return Response(
-            path.read_bytes(), media_type=STATIC_TYPES[path.suffix], headers={"Cache-Control": "no-cache"}
-        )
-
-    @app.get("/")
-    def index() -> Response:
-        return _static("index.html")
-
-    @app.get("/static/{name}")
-    def static(name: str) -> Response:
-        return _static(name)
-
-    @app.get("/api/meta")
-    def meta() -> Any:
-        return state.meta()
-
-    @app.get("/api/state")
-    def state_() -> Any:
-        return state.state()
-
-    @app.get("/api/frame/{n}")
-    def frame(n: str) -> Any:
-        return JSONResponse(_finite(state.frame(n)))
-
-    @app.get("/api/frame/{n}/panorama.jpg")
-    def panorama(n: str) -> Response:
-        data = state.panorama(n)
-        return Response(data, media_type="image/jpeg", headers={"Cache-Control": "private, max-age=3600"})
-
-    async def _body(request: Request) -> Any:
-        declared = request.headers.get("content-length", "")
-        if declared.isdigit() and int(declared) > MAX_BODY:
-            raise _ApiError(413, f"request body too large ({declared} bytes; at most {MAX_BODY})")
-        chunks, size = [], 0
-        async for chunk in request.stream():
-            size += len(chunk)
-            if size > MAX_BODY:
-                raise _ApiError(413, f"request body too large (over {MAX_BODY} bytes)")
-            chunks.append(chunk)
-        raw = b"".join(chunks)
-        if not raw:
-            return {}
-        try:
-            return json.loads(raw)
-        except (ValueError, UnicodeDecodeError) as exc:
-            raise _ApiError(400, f"malformed JSON body: {exc}") from None
-
-    @app.post("/api/op")
-    async def op(request: Request) -> Any:
-        body = await _body(request)
-        return await _in_thread(state.apply, body, "op")
-
-    @app.post("/api/undo")
-    async def undo(request: Request) -> Any:
-        return await _in_thread(state.apply, await _body(request), "undo")
-
-    @app.post("/api/redo")
-    async def redo(request: Request) -> Any:
-        return await _in_thread(state.apply, await _body(request), "redo")
-
-    @app.get("/api/history")
-    def history(frame: str | None = None, limit: str | None = None) -> Any:
-        return state.history(frame, limit)
-
-    @app.get("/api/metrics")
-    def metrics(wait: str | None = None) -> Any:
-        return JSONResponse(_finite(state.metrics(wait)))
-
-    @app.get("/api/next")
-    def next_(
-        kind: str = "flag",
-        start: str | None = None,
-        dir: str | None = None,
-        wait: str | None = None,
-    ) -> Any:
-        return state.next_frame(kind, start if start is not None else "0", dir, wait)
-
-    @app.get("/api/rerun")
-    def rerun_status() -> Any:
-        return state.rerun.status() if state.rerun is not None else {"connected": False}
-
-    @app.post("/api/rerun/time")
-    async def rerun_time(request: Request) -> Any:
-        body = await _body(request)
-        if not isinstance(body, dict):
-            raise _ApiError(400, "the request body must be a JSON object")
-        k = state.check_frame(body.get("frame"))
-        if state.rerun is None:
-            raise _ApiError(404, "no Rerun viewer is linked")
-        return state.rerun.set_frame(k)
-
-    return app
-
-
-async def _in_thread(fn: Callable[..., Any], *args: Any) -> Any:
-    from starlette.concurrency import run_in_threadpool
-
-    return await run_in_threadpool(fn, *args)
-
-
-def _finite(v: Any) -> Any:
-    """NaN/inf → None, recursively (JSON has no NaN)."""
-    if isinstance(v, float):
-        return v if math.isfinite(v) else None
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, list | tuple):
-        return [_finite(x) for x in v]
-    return v
-
-
-def bind_socket(port: int, *, host: str = "127.0.0.1") -> socket.socket:
-    """A listening socket on ``host:port`` (0: a free port).
-
-    Raises:
-        ServerError: the port is taken or invalid.
-    """
-    if not 0 <= port <= 65535:
-        raise ServerError(f"--port must be 0..65535, got {port}")
-    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # restart at once after a crash
-    try:
-        sock.bind((host, port))
-    except OSError as exc:
-        sock.close()
-        raise ServerError(
-            f"cannot listen on {host}:{port} ({exc.strerror or exc}); try another --port"
-        ) from None
-    sock.listen(128)
-    return sock
-
-
-def make_server(state: AnnotateServer, *, log_level: str = "warning") -> Any:
-    """A uvicorn server for ``state``: ``server.run(sockets=[bind_socket(port)])`` (blocks; Ctrl-C stops it).
-
-    Set ``server.should_exit = True`` to stop it from another thread.
-    """
-    import uvicorn
-
-    config = uvicorn.Config(create_app(state), log_level=log_level, access_log=False, lifespan="off")
-    return uvicorn.Server(config)

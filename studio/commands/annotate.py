@@ -12,7 +12,8 @@ __all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> int:
-    from studio.annotate.server import AnnotateServer, bind_socket, make_server
+    from studio.annotate.app import bind_socket, make_server
+    from studio.annotate.server import AnnotateServer
 
     run_dir = Path(args.run)
     if not run_dir.is_dir():

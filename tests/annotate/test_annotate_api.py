@@ -17,7 +17,8 @@ import pytest
 pytest.importorskip("fastapi")
 from fastapi.testclient import TestClient
 
-from studio.annotate.server import AnnotateServer, create_app
+from studio.annotate.app import create_app
+from studio.annotate.server import AnnotateServer
 from studio.evaluate import evaluate
 
 

@@ -21,7 +21,8 @@ pytest.importorskip("fastapi")
 from fastapi.testclient import TestClient
 
 from studio.annotate import AnnotationError, AnnotationStore
-from studio.annotate.server import AnnotateServer, ServerError, create_app
+from studio.annotate.app import create_app
+from studio.annotate.server import AnnotateServer, ServerError
 from studio.labels import read_labels
 
 

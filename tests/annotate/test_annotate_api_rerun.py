@@ -11,8 +11,9 @@ import pytest
 rr = pytest.importorskip("rerun")
 from fastapi.testclient import TestClient  # noqa: E402
 
+from studio.annotate.app import create_app  # noqa: E402
 from studio.annotate.rerun_sync import RerunLink, run_recording_id  # noqa: E402
-from studio.annotate.server import AnnotateServer, create_app  # noqa: E402
+from studio.annotate.server import AnnotateServer  # noqa: E402
 from studio.geometry.se import Pose2  # noqa: E402
 
 

@@ -26,7 +26,8 @@ pytestmark = [
 def server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> Iterator[str]:
     from test_annotate_api import make_sim_run  # same session cache as the API tests
 
-    from studio.annotate.server import AnnotateServer, bind_socket, make_server
+    from studio.annotate.app import bind_socket, make_server
+    from studio.annotate.server import AnnotateServer
 
     run = tmp_path / "run"
     shutil.copytree(make_sim_run(tmp_path_factory.getbasetemp() / "annotate_sim"), run)

@@ -27,7 +27,8 @@ def moved_server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> It
     """The simulated run of the API tests with its recording moved away (run.json names a missing file)."""
     from test_annotate_api import make_sim_run
 
-    from studio.annotate.server import AnnotateServer, bind_socket, make_server
+    from studio.annotate.app import bind_socket, make_server
+    from studio.annotate.server import AnnotateServer
 
     run = tmp_path / "run"
     shutil.copytree(make_sim_run(tmp_path_factory.getbasetemp() / "annotate_sim"), run)
