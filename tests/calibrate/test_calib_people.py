@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studio.calibrate.people import (
+from studio.calibrate.people import calibrate_people
+from studio.calibrate.people_data import (
     ImageObservation,
     LaserPeople,
     PeopleCalibrationError,
     PeopleData,
     UnobservableError,
-    calibrate_people,
     collect_people,
     load_image_detections,
 )
