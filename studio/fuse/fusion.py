@@ -154,6 +154,7 @@ def fuse_frame(
     camera: EquirectCamera | None,
     laser_z: FloatArray | float = 0.3,
     scan_points: FloatArray | None = None,
+    laser_static: NDArray[np.bool_] | None = None,
     config: FusionConfig | None = None,
 ) -> PersonObservations:
     """Fuse one frame's image and laser people into positions in the base frame.
@@ -164,6 +165,9 @@ def fuse_frame(
         camera: the panorama camera with its pose in the base frame; needed when ``image`` is given.
         laser_z: height of each laser detection's scan plane in the base frame, m (scalar or ``(N,)``).
         scan_points: ``(M, 3)`` valid, non-static scan points in the base frame for the cluster fallback.
+        laser_static: ``(N,)`` laser detections on never-moving structure (the static-world map). A box may
+            still take one (someone who stands still for the whole recording looks static to the laser),
+            but one no box takes is dropped.
         config: association parameters.
 
     Returns:
@@ -270,7 +274,8 @@ def fuse_frame(
             if obs is not None:
                 parts.append(obs)
     if n_l and laser is not None:
-        rest = np.flatnonzero(~used_laser)
+        static = np.zeros(n_l, bool) if laser_static is None else np.asarray(laser_static, bool).reshape(n_l)
+        rest = np.flatnonzero(~used_laser & ~static)
         if len(rest):
             parts.append(
                 PersonObservations(

@@ -276,16 +276,23 @@ def fuse_all(
     for f, ds, ps in zip(frames, det_static, pt_static, strict=True):
         laser = f.laser
         laser_z: FloatArray = f.laser_z
-        if laser is not None and ds.any():
-            keep = np.flatnonzero(~ds)
+        if laser is not None and ds.any() and f.image is None:
+            keep = np.flatnonzero(~ds)  # no box can vouch for them: drop the static ones now
             laser = laser.select(keep)
             laser_z = laser_z[keep]
+            ds = ds[keep]
         pts = None
         if options.sources != "camera" and len(f.points):
             sel = np.isfinite(f.points[:, 0]) & ~ps
             pts = f.points[sel].astype(np.float64)
         obs = fuse_frame(
-            f.image, laser, camera=camera, laser_z=laser_z, scan_points=pts, config=options.fusion
+            f.image,
+            laser,
+            camera=camera,
+            laser_z=laser_z,
+            scan_points=pts,
+            laser_static=ds if laser is not None else None,
+            config=options.fusion,
         )
         out.append(
             FrameResult(

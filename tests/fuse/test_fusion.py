@@ -131,6 +131,28 @@ def test_unconfirmed_laser_detections_are_kept_as_laser() -> None:
     assert np.all(np.isnan(obs.box[k]))
 
 
+def test_static_laser_detections_only_count_when_a_box_vouches_for_them() -> None:
+    # someone standing still all recording looks static to the laser: the box still takes the detection;
+    # static detections no box takes (furniture) are dropped, moving ones are kept as laser
+    static = np.array([True, True, False])
+    obs = fuse_frame(
+        dets(person(3.0, 1.0)),
+        laser((3.02, 0.97), (-2.0, -2.0), (1.0, -3.0)),
+        camera=CAM,
+        laser_static=static,
+    )
+    assert sorted(obs.source) == ["fused", "laser"]
+    k = obs.source.index("fused")
+    np.testing.assert_allclose(obs.xy[k], [3.02, 0.97])
+    assert obs.how[k] == "laser-detection"
+    np.testing.assert_allclose(obs.xy[obs.source.index("laser")], [1.0, -3.0])
+    no_box = fuse_frame(
+        None, laser((3.02, 0.97), (1.0, -3.0)), camera=CAM, laser_static=np.array([True, False])
+    )
+    assert no_box.source == ("laser",)
+    np.testing.assert_allclose(no_box.xy[0], [1.0, -3.0])
+
+
 def test_no_fixed_fallback_position() -> None:
     # a box whose foot row is above the horizon (nonsense) and no laser: nothing is invented
     bad = ImageDetections(np.array([[100.0, 10.0, 150.0, 60.0]]), np.array([0.9]), None, W, H)
