@@ -6,10 +6,13 @@ Bound to 127.0.0.1 only; every error is ``{"error": "..."}`` JSON with a 4xx sta
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import socket
-from collections.abc import Callable
+import threading
+import time
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -27,7 +30,7 @@ from studio.annotate.server import (
 )
 from studio.errors import StudioError
 
-__all__ = ["bind_socket", "create_app", "make_server"]
+__all__ = ["bind_socket", "create_app", "make_server", "serve_in_thread"]
 
 
 def _json_error(status: int, message: str, extra: dict[str, Any] | None = None) -> Any:
@@ -203,3 +206,22 @@ def make_server(state: AnnotateServer, *, log_level: str = "warning") -> Any:
 
     config = uvicorn.Config(create_app(state), log_level=log_level, access_log=False, lifespan="off")
     return uvicorn.Server(config)
+
+
+@contextlib.contextmanager
+def serve_in_thread(state: AnnotateServer, *, port: int = 0) -> Iterator[str]:
+    """Serve ``state`` from a background thread (tests, embedding); yields the page's URL.
+
+    The server stops when the block ends; ``state`` stays open (the caller closes it).
+    """
+    sock = bind_socket(port)
+    srv = make_server(state)
+    th = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
+    th.start()
+    while not srv.started and th.is_alive():
+        time.sleep(0.05)
+    try:
+        yield f"http://127.0.0.1:{sock.getsockname()[1]}"
+    finally:
+        srv.should_exit = True
+        th.join(timeout=10)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import threading
-import time
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,21 +24,14 @@ pytestmark = [
 def server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> Iterator[str]:
     from test_annotate_api import make_sim_run  # same session cache as the API tests
 
-    from studio.annotate.app import bind_socket, make_server
+    from studio.annotate.app import serve_in_thread
     from studio.annotate.server import AnnotateServer
 
     run = tmp_path / "run"
     shutil.copytree(make_sim_run(tmp_path_factory.getbasetemp() / "annotate_sim"), run)
     state = AnnotateServer(run, author="browser-test")
-    sock = bind_socket(0)
-    srv = make_server(state)
-    th = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    th.start()
-    while not srv.started:
-        time.sleep(0.05)
-    yield f"http://127.0.0.1:{sock.getsockname()[1]}"
-    srv.should_exit = True
-    th.join(timeout=10)
+    with serve_in_thread(state) as url:
+        yield url
     state.close()
 
 

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import threading
-import time
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
@@ -27,7 +25,7 @@ def moved_server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> It
     """The simulated run of the API tests with its recording moved away (run.json names a missing file)."""
     from test_annotate_api import make_sim_run
 
-    from studio.annotate.app import bind_socket, make_server
+    from studio.annotate.app import serve_in_thread
     from studio.annotate.server import AnnotateServer
 
     run = tmp_path / "run"
@@ -37,15 +35,8 @@ def moved_server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> It
     (run / "run.json").write_text(json.dumps(info))
     state = AnnotateServer(run, author="keys")
     assert state.media.problem
-    sock = bind_socket(0)
-    srv = make_server(state)
-    th = threading.Thread(target=srv.run, kwargs={"sockets": [sock]}, daemon=True)
-    th.start()
-    while not srv.started:
-        time.sleep(0.05)
-    yield f"http://127.0.0.1:{sock.getsockname()[1]}"
-    srv.should_exit = True
-    th.join(timeout=10)
+    with serve_in_thread(state) as url:
+        yield url
     state.close()
 
 
