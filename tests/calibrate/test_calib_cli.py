@@ -49,6 +49,20 @@ def run_cli(*argv: str) -> int:
     return main(["calibrate", *argv])
 
 
+def project_args(rig: object, points: object, out: object) -> list[str]:
+    return [
+        "project",
+        "--rig",
+        str(rig),
+        "--points",
+        str(points),
+        "--image-size",
+        "3840x1920",
+        "--out",
+        str(out),
+    ]
+
+
 def extrinsics_args(csv: Path, out: Path, *extra: str) -> list[str]:
     return [
         "extrinsics",
@@ -107,20 +121,7 @@ def test_project_with_calib_and_with_rig(tmp_path: Path, capsys: pytest.CaptureF
     pts = tmp_path / "pts.csv"
     pts.write_text("id,x,y,z\n" + "".join(f"{i},{p[0]},{p[1]},{p[2]}\n" for i, p in enumerate(xyz)))
     out = tmp_path / "uv.csv"
-    assert (
-        run_cli(
-            "project",
-            "--rig",
-            str(tmp_path / "calib.yaml"),
-            "--points",
-            str(pts),
-            "--image-size",
-            "3840x1920",
-            "--out",
-            str(out),
-        )
-        == 0
-    )
+    assert run_cli(*project_args(str(tmp_path / "calib.yaml"), str(pts), str(out))) == 0
     got = np.loadtxt(out, delimiter=",", skiprows=1)
     calib = yaml.safe_load((tmp_path / "calib.yaml").read_text())
     expect = project_points(Pose3.from_xyz_rpy(**calib["camera"]["pose"]), xyz, image_size=SIZE)
@@ -129,20 +130,7 @@ def test_project_with_calib_and_with_rig(tmp_path: Path, capsys: pytest.CaptureF
 
     rig = Rig(base_frame="base_link", camera=CameraConfig("/cam", TRUE), lasers=(LaserConfig("/scan"),))
     save_rig(rig, tmp_path / "rig.yaml")
-    assert (
-        run_cli(
-            "project",
-            "--rig",
-            str(tmp_path / "rig.yaml"),
-            "--points",
-            str(pts),
-            "--image-size",
-            "3840x1920",
-            "--out",
-            str(out),
-        )
-        == 0
-    )
+    assert run_cli(*project_args(str(tmp_path / "rig.yaml"), str(pts), str(out))) == 0
     got = np.loadtxt(out, delimiter=",", skiprows=1)
     np.testing.assert_allclose(got, project_points(TRUE, xyz, image_size=SIZE), atol=1e-3)
 
@@ -150,20 +138,7 @@ def test_project_with_calib_and_with_rig(tmp_path: Path, capsys: pytest.CaptureF
     data = yaml.safe_load((tmp_path / "rig.yaml").read_text())
     data["calibration"] = calib["calibration"]
     (tmp_path / "rig2.yaml").write_text(yaml.safe_dump(data))
-    assert (
-        run_cli(
-            "project",
-            "--rig",
-            str(tmp_path / "rig2.yaml"),
-            "--points",
-            str(pts),
-            "--image-size",
-            "3840x1920",
-            "--out",
-            str(out),
-        )
-        == 0
-    )
+    assert run_cli(*project_args(str(tmp_path / "rig2.yaml"), str(pts), str(out))) == 0
 
 
 def test_csv_reader_columns(tmp_path: Path) -> None:
