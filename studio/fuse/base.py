@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from studio.detect.laser.base import KIND_PAIR
+
 __all__ = ["HOW", "SOURCES", "FusionConfig", "PersonObservations"]
 
 FloatArray = NDArray[np.float64]
@@ -39,7 +41,11 @@ class FusionConfig:
         cluster_gap: scan points closer than this in range belong to one cluster, m.
         cluster_min_points: smallest scan cluster that counts as a person.
         leg_radius: distance from a leg's visible surface to its centre, m.
-        laser_sigma: 1-σ of a laser people detection, m.
+        laser_sigma: 1-σ (per axis) of a laser person made of a leg pair, m.
+        leg_sigma: 1-σ of a person seen as a single leg or a blob, m. A walker's legs are up to half a
+            stride (≈ 0.3 m) in front of or behind the body, so one leg says less than a pair; measured on
+            simulated walkers (``moving``, seeds 1–2): pairs 0.04–0.05 m, single legs 0.10–0.12 m, blobs
+            0.10–0.13 m per axis.
         cluster_sigma: 1-σ of a scan-cluster position, m.
         max_range: ignore people farther than this from the camera, m.
         floor_z: height of the floor in the base frame, m.
@@ -58,10 +64,15 @@ class FusionConfig:
     cluster_gap: float = 0.3
     cluster_min_points: int = 3
     leg_radius: float = 0.06
-    laser_sigma: float = 0.06
+    laser_sigma: float = 0.05
+    leg_sigma: float = 0.11
     cluster_sigma: float = 0.10
     max_range: float = 12.0
     floor_z: float = 0.0
+
+    def laser_sigmas(self, kind: NDArray[np.int64]) -> FloatArray:
+        """1-σ of laser people of the given kinds (:data:`studio.detect.laser.base.KIND_PAIR` …), m."""
+        return np.where(np.asarray(kind) == KIND_PAIR, self.laser_sigma, self.leg_sigma)
 
 
 @dataclass(frozen=True)

@@ -187,15 +187,16 @@ def fuse_frame(
         bw = np.maximum(boxes[:, 2] - boxes[:, 0], 1.0)
         cost = np.full((n_b, n_l), _BIG)
         if n_l and laser is not None:
+            sig_l = cfg.laser_sigmas(laser.kind)
             z = np.broadcast_to(np.asarray(laser_z, dtype=np.float64), (n_l,))
             u_l, r_l = points_columns(camera, np.c_[laser.xy, z])
             for i in range(n_b):
                 off = _offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
                 inside = np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac
                 if np.isfinite(br.range[i]):
-                    s = np.hypot(br.sigma[i], cfg.laser_sigma)
+                    s = np.hypot(br.sigma[i], sig_l)
                     dr = (r_l - br.range[i]) / s
-                    ok = inside & (np.abs(r_l - br.range[i]) <= max(cfg.gate_range_min, cfg.gate_sigma * s))
+                    ok = inside & (np.abs(r_l - br.range[i]) <= np.maximum(cfg.gate_range_min, cfg.gate_sigma * s))
                     c = off**2 + dr**2
                 else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
                     ok = inside & (r_l <= cfg.max_range)
@@ -210,7 +211,7 @@ def fuse_frame(
                 parts.append(
                     _one(
                         laser.xy[j],
-                        cfg.laser_sigma**2 * np.eye(2),
+                        sig_l[j] ** 2 * np.eye(2),
                         sc,
                         "fused",
                         "laser-detection",
@@ -280,7 +281,7 @@ def fuse_frame(
             parts.append(
                 PersonObservations(
                     laser.xy[rest],
-                    np.repeat(cfg.laser_sigma**2 * np.eye(2)[None], len(rest), axis=0),
+                    cfg.laser_sigmas(laser.kind[rest])[:, None, None] ** 2 * np.eye(2),
                     laser.scores[rest],
                     ("laser",) * len(rest),
                     ("laser-only",) * len(rest),

@@ -163,3 +163,19 @@ def test_no_fixed_fallback_position() -> None:
 def test_laser_only_rig() -> None:
     obs = fuse_frame(None, laser((1.0, 2.0)), camera=None)
     assert obs.source == ("laser",)
+
+
+def test_a_single_leg_is_less_certain_than_a_leg_pair() -> None:
+    # a walker's leg is up to half a stride from the body: the covariance says so, fused or laser-only
+    cfg = FusionConfig()
+    two = LaserDetections(
+        np.array([[3.0, 1.0], [-2.0, -2.0]]), np.full(2, 0.7), np.array([0, 1]), np.full(2, 0.2)
+    )
+    obs = fuse_frame(dets(person(3.0, 1.0)), two, camera=CAM, config=cfg)
+    k_pair, k_leg = obs.source.index("fused"), obs.source.index("laser")
+    np.testing.assert_allclose(obs.cov[k_pair], cfg.laser_sigma**2 * np.eye(2))
+    np.testing.assert_allclose(obs.cov[k_leg], cfg.leg_sigma**2 * np.eye(2))
+    assert cfg.leg_sigma > 2 * cfg.laser_sigma
+    swapped = LaserDetections(two.xy, two.scores, np.array([1, 0]), two.radius)
+    obs = fuse_frame(dets(person(3.0, 1.0)), swapped, camera=CAM, config=cfg)
+    np.testing.assert_allclose(obs.cov[obs.source.index("fused")], cfg.leg_sigma**2 * np.eye(2))
