@@ -196,7 +196,8 @@ def fuse_frame(
                 if np.isfinite(br.range[i]):
                     s = np.hypot(br.sigma[i], sig_l)
                     dr = (r_l - br.range[i]) / s
-                    ok = inside & (np.abs(r_l - br.range[i]) <= np.maximum(cfg.gate_range_min, cfg.gate_sigma * s))
+                    gate = np.maximum(cfg.gate_range_min, cfg.gate_sigma * s)
+                    ok = inside & (np.abs(r_l - br.range[i]) <= gate)
                     c = off**2 + dr**2
                 else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
                     ok = inside & (r_l <= cfg.max_range)

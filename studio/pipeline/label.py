@@ -1,7 +1,7 @@
 """``studio label``: recording + rig → people's positions with identities in every frame.
 
 Two passes. The first streams the recording once (images decoded one at a time, memory flat in the number
-of images) and keeps per frame only what later stages need: image detections with an appearance histogram
+of images) and keeps per frame only what later stages need: image detections with an appearance descriptor
 per box, laser detections in the base frame and the frame's scan points. Between the passes, the scan points
 of the whole recording build the static-world map in the odom frame. The second pass fuses, tracks in the
 odom frame (UKF + GNN, RTS smoothing, tracklet stitching) and returns labels.
@@ -27,6 +27,7 @@ from studio.geometry import EquirectCamera
 from studio.geometry.se import Pose2
 from studio.labels.base import LabelFrame, LabelPerson, as_box
 from studio.pipeline.base import FrameResult, LabelOptions
+from studio.track.appearance import APPEARANCE_DIM
 
 __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
 
@@ -151,7 +152,7 @@ def perceive(
 
         laser_detector = get_laser_detector(options.laser_detector or "classical")
 
-    from studio.track.appearance import colour_histogram
+    from studio.track.appearance import clothing_colours
 
     t_img = t_las = t_io = 0.0
     last_image_ns: int | None = None
@@ -174,7 +175,7 @@ def perceive(
                 last_image_ns = stamp
                 pano = frame.panorama.image
                 image = image_detector.detect(pano)
-                appearance = _box_histograms(pano, image.boxes, colour_histogram)
+                appearance = clothing_colours(pano, image.boxes, image.keypoints)
             t2 = time.perf_counter()
             t_img += t2 - t1
             if use_laser and laser_detector is not None:
@@ -217,23 +218,6 @@ def perceive(
 class _NoDetector:
     def detect(self, points: FloatArray, *, valid: Any = None) -> LaserDetections:
         return LaserDetections.empty(with_segments=True)
-
-
-def _box_histograms(
-    pano: NDArray[np.uint8], boxes: FloatArray, hist: Callable[..., Any]
-) -> NDArray[np.float32]:
-    """Colour histogram of the torso part of each box (upper-middle 20–60 % of its height)."""
-    H, W = pano.shape[:2]
-    out = []
-    for u1, v1, u2, v2 in boxes:
-        h = v2 - v1
-        r1, r2 = int(max(0, v1 + 0.2 * h)), int(min(H, v1 + 0.6 * h))
-        cols = np.arange(int(u1 + 0.25 * (u2 - u1)), int(np.ceil(u2 - 0.25 * (u2 - u1))) + 1) % W
-        crop = pano[r1:r2][:, cols] if r2 > r1 and len(cols) else np.zeros((0, 3), np.uint8)
-        out.append(hist(crop))
-    if not out:
-        return np.zeros((0, 48), np.float32)
-    return np.stack(out).astype(np.float32)
 
 
 def _static_masks(frames: list[PerceptionFrame]) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
@@ -353,8 +337,7 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
     cov = R @ obs.cov @ R.T if len(obs) else np.zeros((0, 2, 2))
     app = None
     if appearance is not None:
-        d = appearance.shape[1] if appearance.ndim == 2 and appearance.shape[0] else 48
-        app = np.full((len(obs), d), np.nan, np.float32)
+        app = np.full((len(obs), APPEARANCE_DIM), np.nan, np.float32)
         for k, bi in enumerate(obs.box_index):
             if bi >= 0 and bi < len(appearance):
                 app[k] = appearance[bi]

@@ -57,7 +57,7 @@ class Observations:
         cov: (N, 2, 2) float64 position covariances, m² (symmetric positive definite).
         source: N strings, each ``"fused"``, ``"laser"`` or ``"image"``.
         score: (N,) float64 detection confidences.
-        appearance: (N, D) float32 appearance descriptors (e.g. L1-normalised colour histograms) or None;
+        appearance: (N, D) float32 appearance descriptors (e.g. clothing colours) or None;
             an all-NaN row means that observation has no descriptor (e.g. a laser-only person).
         det_index: (N,) int64 index of each observation among the frame's detections, so that tracker
             outputs can be joined back to boxes and labels.

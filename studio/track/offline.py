@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.track.appearance import mean_histogram
+from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
@@ -123,10 +123,11 @@ def _run(obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig) -> Filter
     )
 
 
-def _appearance(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32] | None:
+def _descriptors(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32]:
+    """(M, D) appearance descriptors of a track's observations that have one."""
     rows = [obs[i].appearance[r] for i, r in hits if obs[i].appearance is not None]  # type: ignore[index]
     rows = [a for a in rows if np.all(np.isfinite(a))]
-    return mean_histogram(np.array(rows)) if rows else None
+    return np.array(rows, np.float32).reshape(len(rows), APPEARANCE_DIM)
 
 
 _Cache = dict[tuple[tuple[int, int], ...], tuple[FilterRun, FloatArray, FloatArray]]
@@ -148,6 +149,7 @@ def _tracklet(
 ) -> Tracklet:
     run, x, P = _estimate(obs, hits, cfg, cache)
     n = max(1, cfg.appearance_frames)
+    desc = _descriptors(obs, hits)
     return Tracklet(
         tid,
         int(run.stamps_ns[0]),
@@ -156,8 +158,10 @@ def _tracklet(
         P[0],
         x[-1],
         P[-1],
-        _appearance(obs, hits[:n]),
-        _appearance(obs, hits[-n:]),
+        median_appearance(desc[:n]) if len(desc) else None,
+        median_appearance(desc[-n:]) if len(desc) else None,
+        median_appearance(desc) if len(desc) else None,
+        len(desc),
     )
 
 

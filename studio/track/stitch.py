@@ -8,21 +8,30 @@ A tracklet A that ends at ``t1`` may continue as a tracklet B that starts at ``t
   ``e <= n_sigma·σ + max_accel_speed·gap`` (σ from both estimates' covariances; ``max_accel_speed`` is the
   largest velocity change a person makes unseen, m/s) and the straight distance is walkable:
   ``|B.start - A.end| <= n_sigma·σ + max_speed·gap``;
-* appearance agrees (when both carry a descriptor): Bhattacharyya distance ``<= max_appearance``.
+* appearance agrees (when both carry a descriptor): colour difference
+  (:func:`studio.track.appearance.appearance_distance`) ``<= max_appearance``.
 
-The cost of an allowed pair is ``e / gate + appearance_weight · d_app / max_appearance``; ends are matched to
-starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start unlinked, and chains
-(A → B → C) follow.
+Its cost is ``e / gate + appearance_weight · d_app / max_appearance``.
+
+Longer gaps, up to ``reid_max_gap_s`` (someone who left the sensors' view and came back), cannot be
+bridged by motion; such a pair is allowed by **appearance alone**: both tracklets are described by at
+least ``min_views`` observations, their whole-tracklet colours differ by at most
+``reid_max_appearance`` and the distance is walkable (``max_speed · gap``). Its cost is
+``1 + d_app / reid_max_appearance``: a re-identification never beats a good motion bridge.
+
+Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
+unlinked, and chains (A → B → C) follow.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.track.appearance import bhattacharyya_distance
+from studio.track.appearance import appearance_distance
 from studio.track.gnn import gnn_assign
 
 __all__ = ["StitchConfig", "Tracklet", "chain_links", "stitch_links"]
@@ -39,7 +48,9 @@ class Tracklet:
         start_ns, end_ns: stamps of its first and last observation, ns.
         x_start, x_end: (4,) (smoothed) states ``[px, py, vx, vy]`` there (m, m/s).
         P_start, P_end: (4, 4) their covariances.
-        app_start, app_end: (D,) appearance descriptors near its start / end, or None.
+        app_start, app_end: (6,) appearance descriptors near its start / end, or None.
+        app: (6,) descriptor of the whole tracklet, or None.
+        n_app: how many observations ``app`` comes from.
     """
 
     track_id: int
@@ -51,6 +62,8 @@ class Tracklet:
     P_end: FloatArray
     app_start: NDArray[np.float32] | None = None
     app_end: NDArray[np.float32] | None = None
+    app: NDArray[np.float32] | None = None
+    n_app: int = 0
 
 
 @dataclass(frozen=True)
@@ -62,8 +75,14 @@ class StitchConfig:
         n_sigma: how many standard deviations of the estimates the gates allow.
         max_accel_speed: largest unseen change of velocity, m/s (2 = a walker turning back).
         max_speed: fastest walking speed, m/s.
-        max_appearance: largest Bhattacharyya distance of a link (when both sides have descriptors).
+        max_appearance: largest colour difference (ΔE) of a motion link (when both sides have descriptors).
         appearance_weight: weight of the appearance term in the cost.
+        reid_max_gap_s: longest gap bridged by appearance alone, seconds (0: no re-identification).
+        reid_max_appearance: largest colour difference of a re-identification.
+        min_views: a tracklet's colours count only when at least this many of its observations have a
+            descriptor (one crop may show a neighbour or be half occluded).
+        unknown_appearance: the appearance term of a motion link when a side has no usable colours, as a
+            fraction of ``appearance_weight`` (unknown is not a perfect match).
         miss_cost: cost of leaving a tracklet end or start unlinked; links are chosen to minimise the total,
             so one good link beats two poor ones that conflict with it.
     """
@@ -72,19 +91,27 @@ class StitchConfig:
     n_sigma: float = 3.0
     max_accel_speed: float = 2.0
     max_speed: float = 2.5
-    max_appearance: float = 0.5
+    max_appearance: float = 15.0
     appearance_weight: float = 1.0
+    reid_max_gap_s: float = 60.0
+    reid_max_appearance: float = 8.0
+    min_views: int = 3
+    unknown_appearance: float = 0.5
     miss_cost: float = 1.5
 
     def __post_init__(self) -> None:
-        if self.max_gap_s <= 0 or self.max_appearance <= 0:
-            raise ValueError("max_gap_s and max_appearance must be positive")
+        if self.max_gap_s <= 0 or self.max_appearance <= 0 or self.reid_max_appearance <= 0:
+            raise ValueError("max_gap_s, max_appearance and reid_max_appearance must be positive")
+        if self.reid_max_gap_s < 0:
+            raise ValueError("reid_max_gap_s must not be negative")
 
 
 def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
     gap = (b.start_ns - a.end_ns) * 1e-9
-    if not 0.0 < gap <= cfg.max_gap_s:
+    if gap <= 0.0:
         return None
+    if gap > cfg.max_gap_s:
+        return _reid_cost(a, b, gap, cfg)
     pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
     e = 0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap))))
     lam = lambda M: float(np.linalg.eigvalsh(M)[-1])  # noqa: E731 - largest eigenvalue
@@ -94,12 +121,28 @@ def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
     if e > gate or np.hypot(*(pb - pa)) > cfg.n_sigma * np.sqrt(var_pos) + cfg.max_speed * gap:
         return None
     cost = e / gate
-    if a.app_end is not None and b.app_start is not None:
-        d = bhattacharyya_distance(a.app_end, b.app_start)
+    if _described(a, cfg) and _described(b, cfg):
+        d = appearance_distance(a.app_end, b.app_start)  # type: ignore[arg-type]
         if d > cfg.max_appearance:
             return None
-        cost += cfg.appearance_weight * d / cfg.max_appearance
-    return cost
+        return cost + cfg.appearance_weight * d / cfg.max_appearance
+    # Unknown appearance is not a perfect match: a tracklet the camera never saw (laser clutter, or
+    # someone out of view) must not win over a continuation whose colours agree.
+    return cost + cfg.appearance_weight * cfg.unknown_appearance
+
+
+def _described(t: Tracklet, cfg: StitchConfig) -> bool:
+    has = t.app is not None and t.app_start is not None and t.app_end is not None
+    return has and t.n_app >= cfg.min_views
+
+
+def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float | None:
+    if gap > cfg.reid_max_gap_s or not _described(a, cfg) or not _described(b, cfg):
+        return None
+    if np.hypot(*(b.x_start[:2] - a.x_end[:2])) > cfg.max_speed * gap + 1.0:
+        return None
+    d = appearance_distance(a.app, b.app)  # type: ignore[arg-type]
+    return None if d > cfg.reid_max_appearance else 1.0 + d / cfg.reid_max_appearance
 
 
 def stitch_links(tracklets: list[Tracklet], *, config: StitchConfig | None = None) -> list[tuple[int, int]]:
@@ -109,19 +152,58 @@ def stitch_links(tracklets: list[Tracklet], *, config: StitchConfig | None = Non
         ``(id_a, id_b)`` links: B continues A. Every id is at most once an ``id_a`` and once an ``id_b``.
     """
     cfg = config or StitchConfig()
-    n = len(tracklets)
-    cost = np.zeros((n, n))
-    allowed = np.zeros((n, n), dtype=bool)
-    for i, a in enumerate(tracklets):
-        for j, b in enumerate(tracklets):
-            if i != j:
+    described = [t for t in tracklets if _described(t, cfg)]
+    # Pass 1: the tracklets the camera described, with motion and colours (and re-identification).
+    first = _assign(described, described, cfg, lambda a, b: True)
+    # Pass 2: the others (laser clutter, someone out of view) attach by motion to what pass 1 built; two
+    # described chains that pass 1 left apart are not joined.
+    nxt = {a: b for a, b, _ in first}
+    prv = {b: a for a, b, _ in first}
+    desc_ids = {t.track_id for t in described}
+    tails = [t for t in tracklets if t.track_id not in nxt]
+    heads = [t for t in tracklets if t.track_id not in prv]
+    second = _assign(tails, heads, cfg, lambda a, b: not (a.track_id in desc_ids and b.track_id in desc_ids))
+    return _unjoin(first, second, desc_ids)
+
+
+def _assign(
+    ends: list[Tracklet], starts: list[Tracklet], cfg: StitchConfig, ok: Callable[[Tracklet, Tracklet], bool]
+) -> list[tuple[int, int, float]]:
+    """One-to-one links from ``ends`` to ``starts`` minimising the total cost: ``(id_a, id_b, cost)``."""
+    cost = np.zeros((len(ends), len(starts)))
+    allowed = np.zeros(cost.shape, dtype=bool)
+    for i, a in enumerate(ends):
+        for j, b in enumerate(starts):
+            if a.track_id != b.track_id and ok(a, b):
                 c = _pair_cost(a, b, cfg)
                 if c is not None:
                     cost[i, j], allowed[i, j] = c, True
     return [
-        (tracklets[i].track_id, tracklets[j].track_id)
+        (ends[i].track_id, starts[j].track_id, float(cost[i, j]))
         for i, j in gnn_assign(cost, allowed, miss_cost=cfg.miss_cost)
     ]
+
+
+def _unjoin(
+    first: list[tuple[int, int, float]], second: list[tuple[int, int, float]], described: set[int]
+) -> list[tuple[int, int]]:
+    """All links, less the dearest pass-2 link on every path that joins two described chains."""
+    links = {a: (b, c, False) for a, b, c in second} | {a: (b, c, True) for a, b, c in first}
+    heads = set(links) - {b for b, _, _ in links.values()}
+    drop = set()
+    for h in heads:
+        seen_described, bridge = h in described, []  # pass-2 links since the last described tracklet
+        cur = h
+        while cur in links:
+            nxt, c, in_first = links[cur]
+            if not in_first:
+                bridge.append((c, cur))
+            if nxt in described:
+                if seen_described and bridge:
+                    drop.add(max(bridge)[1])
+                seen_described, bridge = True, []
+            cur = nxt
+    return sorted((a, b) for a, (b, _, _) in links.items() if a not in drop)
 
 
 def chain_links(ids: list[int], links: list[tuple[int, int]]) -> dict[int, int]:

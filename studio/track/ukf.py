@@ -21,7 +21,7 @@ import numpy as np
 from filterpy.kalman import UnscentedKalmanFilter, unscented_transform
 from numpy.typing import NDArray
 
-from studio.track.appearance import bhattacharyya_matrix
+from studio.track.appearance import appearance_matrix
 from studio.track.base import Observations, TrackEstimate
 from studio.track.errors import TrackingError
 from studio.track.gnn import chi2_gate, gnn_assign, mahalanobis_costs
@@ -54,9 +54,10 @@ class UkfTrackerConfig:
             (clutter-born tracks cannot steal a detection from an established track).
         report_tentative: :meth:`UkfTracker.step` also returns tentative tracks.
         appearance_gate: when set and both a track and an observation carry appearance descriptors, pairs
-            whose Bhattacharyya distance exceeds this are not associated (off by default: histograms of
-            real crops vary with light and pose; the offline stitcher uses them with care).
-        appearance_weight: added cost per unit of Bhattacharyya distance (0: appearance does not count).
+            whose colour difference (:func:`~studio.track.appearance.appearance_distance`, ΔE) exceeds this
+            are not associated (off by default: one crop's colours vary with light, pose and occlusion; the
+            offline stitcher compares medians over many observations).
+        appearance_weight: added cost per unit of colour difference (0: appearance does not count).
         appearance_momentum: a track's descriptor is ``m·old + (1 − m)·new`` after each hit.
         alpha, beta, kappa: scaled sigma-point parameters of the UKF.
     """
@@ -224,7 +225,7 @@ class UkfTracker:
         has = np.all(np.isfinite(B), axis=1)
         D = np.zeros((len(rows), len(cols)))
         if has.any():
-            D[:, has] = bhattacharyya_matrix(A, B[has])
+            D[:, has] = appearance_matrix(A, B[has])
         cost[rows] += cfg.appearance_weight * D
         if cfg.appearance_gate is not None:
             allowed[rows] &= cfg.appearance_gate >= D

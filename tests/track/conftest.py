@@ -2,7 +2,8 @@
 
 People walk between random waypoints at 0.8–1.4 m/s, stop for a while at some of them and turn; frames come
 at about 10 Hz with jittered (irregular) stamps; detections have 5 cm noise, 10 % misses, some clutter, and
-optional occlusion intervals. Each person carries a colour histogram; each detection a noisy copy of it.
+optional occlusion intervals. Each person wears clothes of random colours (an appearance descriptor, L*a*b* of
+torso and legs); each detection carries a noisy copy of it.
 """
 
 from __future__ import annotations
@@ -18,7 +19,13 @@ from studio.geometry.se import Pose2
 from studio.track import Observations, TrackResult
 
 FloatArray = NDArray[np.float64]
-HIST_BINS = 16
+APP_DIM = 6
+
+
+def random_colours(rng: np.random.Generator, n: int) -> FloatArray:
+    """(n, 6) clothing colours: L* 10–90, a* and b* within ±60, for torso and legs."""
+    lo, hi = np.array([10.0, -60, -60] * 2), np.array([90.0, 60, 60] * 2)
+    return rng.uniform(lo, hi, (n, APP_DIM))
 
 
 @dataclass
@@ -76,7 +83,7 @@ def random_scene(n_people: int, seconds: float, *, seed: int = 0) -> Scene:
     st = stamps(seconds, seed=seed)
     t = (st - st[0]) * 1e-9
     truth = np.stack([walker(t, rng) for _ in range(n_people)], axis=1)
-    colours = rng.dirichlet(np.full(HIST_BINS, 0.3), n_people)
+    colours = random_colours(rng, n_people)
     return Scene(st, truth, np.ones((len(st), n_people), dtype=bool), colours)
 
 
@@ -105,11 +112,11 @@ def detect(
                 continue
             xy.append(scene.truth[k, p] + rng.normal(0.0, noise_m, 2))
             owner.append(int(p))
-            app.append(0.8 * scene.colours[p] + 0.2 * rng.dirichlet(np.ones(HIST_BINS)))
+            app.append(scene.colours[p] + rng.normal(0.0, 3.0, APP_DIM))
         for _ in range(rng.poisson(clutter_rate)):
             xy.append(rng.uniform(-5.0, 5.0, 2))
             owner.append(-1)
-            app.append(rng.dirichlet(np.full(HIST_BINS, 0.3)))
+            app.append(random_colours(rng, 1)[0])
         order = rng.permutation(len(xy))
         pts = np.array(xy).reshape(-1, 2)[order]
         if frames is not None:
@@ -120,7 +127,7 @@ def detect(
                 int(stamp),
                 pts,
                 sigma_m=noise_m,
-                appearance=np.array(app).reshape(-1, HIST_BINS)[order] if appearance else None,
+                appearance=np.array(app).reshape(-1, APP_DIM)[order] if appearance else None,
                 det_index=det,
             )
         )
@@ -173,5 +180,5 @@ def sim() -> SimpleNamespace:
         detect=detect,
         id_switches=id_switches,
         rmse=rmse,
-        HIST_BINS=HIST_BINS,
+        APP_DIM=APP_DIM,
     )

@@ -8,10 +8,11 @@ import pytest
 from studio.geometry.se import Pose2
 from studio.track import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.appearance import (
-    bhattacharyya_distance,
-    bhattacharyya_matrix,
-    colour_histogram,
-    mean_histogram,
+    APPEARANCE_DIM,
+    appearance_distance,
+    appearance_matrix,
+    clothing_colours,
+    median_appearance,
 )
 
 
@@ -85,33 +86,56 @@ def test_track_result_helpers():
         TrackFrame(0, (p, p))
 
 
-def test_bhattacharyya_table():
-    a = np.array([0.5, 0.5, 0.0, 0.0])
-    b = np.array([0.0, 0.0, 0.5, 0.5])
-    assert bhattacharyya_distance(a, a) == pytest.approx(0.0, abs=1e-7)
-    assert bhattacharyya_distance(a, b) == pytest.approx(1.0)
-    assert bhattacharyya_distance(a * 10, a) == pytest.approx(0.0, abs=1e-7)  # normalised first
-    assert bhattacharyya_distance(a, np.zeros(4)) == 1.0
-    c = np.array([0.25, 0.25, 0.25, 0.25])
-    assert 0.0 < bhattacharyya_distance(a, c) < 1.0
-    M = bhattacharyya_matrix([a, b], [a, b, c])
+def _person_panorama(shirt_bgr, trousers_bgr, *, u0: int = 100, seam: bool = False):
+    """A grey panorama with one upright 'person' box: shirt over trousers, background around them."""
+    W, H = 400, 200
+    pano = np.full((H, W, 3), 128, np.uint8)
+    cols = np.arange(u0, u0 + 40) % W
+    pano[40:100][:, cols] = shirt_bgr
+    pano[100:170][:, cols] = trousers_bgr
+    box = np.array([[u0 - 10, 30, u0 + 50, 180]], float)
+    if seam:
+        box[0, 0] %= W
+        box[0, 2] = box[0, 0] + 60
+    return pano, box
+
+
+def test_clothing_colours_from_the_box_and_the_keypoints():
+    pano, box = _person_panorama((40, 40, 190), (120, 70, 40))  # red shirt, blue trousers (BGR)
+    d = clothing_colours(pano, box)
+    assert d.shape == (1, APPEARANCE_DIM)
+    torso, legs = d[0, :3], d[0, 3:]
+    assert torso[1] > 40
+    assert legs[2] < -20
+    # the pose gives the same regions
+    kp = np.zeros((1, 17, 3))
+    joints = {5: (108, 45), 6: (132, 45), 11: (112, 100), 12: (128, 100), 13: (112, 135), 14: (128, 135)}
+    for j, (u, v) in joints.items():
+        kp[0, j] = (u, v, 0.9)
+    np.testing.assert_allclose(clothing_colours(pano, box, kp), d, atol=1.0)
+    # across the 0/360° seam
+    pano_s, box_s = _person_panorama((40, 40, 190), (120, 70, 40), u0=380, seam=True)
+    np.testing.assert_allclose(clothing_colours(pano_s, box_s), d, atol=1.0)
+    # a box too small to describe gives an all-NaN row
+    assert np.isnan(clothing_colours(pano, [[10, 10, 12, 12]])).all()
+
+
+def test_appearance_distance_is_the_worse_of_torso_and_legs():
+    pano, box = _person_panorama((40, 40, 190), (120, 70, 40))
+    red_blue = clothing_colours(pano, box)[0]
+    pano, box = _person_panorama((40, 40, 190), (30, 30, 32))
+    red_black = clothing_colours(pano, box)[0]
+    pano, box = _person_panorama((42, 38, 185), (118, 72, 41))
+    similar = clothing_colours(pano, box)[0]
+    assert appearance_distance(red_blue, red_blue) == pytest.approx(0.0)
+    assert appearance_distance(red_blue, similar) < 3.0
+    assert appearance_distance(red_blue, red_black) > 15.0  # same shirt, other trousers
+    M = appearance_matrix([red_blue, red_black], [red_blue, similar, red_black])
     assert M.shape == (2, 3)
-    assert M[0, 2] == pytest.approx(bhattacharyya_distance(a, c))
-    np.testing.assert_allclose(mean_histogram([a, b]), c)
-
-
-def test_colour_histogram_separates_shirts():
-    red = np.zeros((20, 10, 3), np.uint8)
-    red[..., 2] = 200
-    blue = np.zeros((20, 10, 3), np.uint8)
-    blue[..., 0] = 200
-    hr, hb = colour_histogram(red), colour_histogram(blue)
-    assert hr.shape == (48,)
-    assert hr.sum() == pytest.approx(1.0)
-    assert bhattacharyya_distance(hr, hb) > 0.9
-    noisy = np.clip(red.astype(int) + np.random.default_rng(0).integers(-20, 20, red.shape), 0, 255)
-    assert bhattacharyya_distance(hr, colour_histogram(noisy.astype(np.uint8))) < 0.5
-    assert colour_histogram(np.zeros((0, 3), np.uint8)).sum() == pytest.approx(1.0)
+    assert M[1, 1] == pytest.approx(appearance_distance(red_black, similar))
+    nan = np.full(APPEARANCE_DIM, np.nan)
+    np.testing.assert_allclose(median_appearance([red_blue, nan, red_blue, similar]), red_blue)
+    assert median_appearance([nan]) is None
 
 
 def test_all_nan_appearance_row_means_no_descriptor() -> None:

@@ -94,8 +94,7 @@ def _bounce(sim, appearance: bool):
     t = (st - st[0]) * 1e-9
     x = 1.0 * np.minimum(t, 8.0 - t) - 4.0  # out to x = 0 at t = 4 s and back
     truth = np.stack([np.stack([x, np.full_like(x, 0.3)], 1), np.stack([-x, np.full_like(x, -0.3)], 1)], 1)
-    colours = np.zeros((2, sim.HIST_BINS))
-    colours[0, :4] = colours[1, 8:12] = 0.25  # red shirt, blue shirt
+    colours = np.array([[50.0, 60, 40, 30, 0, 0], [50.0, 10, -50, 30, 0, 0]])  # red shirt, blue shirt
     scene = sim.Scene(st, truth, np.ones((len(st), 2), dtype=bool), colours)
     sim.occlude(scene, 0, 3.25, 1.5)
     sim.occlude(scene, 1, 3.25, 1.5)

@@ -9,14 +9,15 @@ from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_link
 
 S = 1_000_000_000
 P = np.diag([0.003, 0.003, 0.05, 0.05])  # ~5 cm, ~0.2 m/s
-RED = np.array([0.5, 0.5, 0.0, 0.0], np.float32)
-BLUE = np.array([0.0, 0.0, 0.5, 0.5], np.float32)
+RED = np.array([50.0, 60.0, 40.0, 30.0, 0.0, 0.0], np.float32)  # L*a*b* of a red shirt over dark trousers
+BLUE = np.array([50.0, 10.0, -50.0, 30.0, 0.0, 0.0], np.float32)
 
 
-def tl(tid, start_s, end_s, p_start, p_end, v=(1.0, 0.0), app=None) -> Tracklet:
+def tl(tid, start_s, end_s, p_start, p_end, v=(1.0, 0.0), app=None, views=10) -> Tracklet:
     xs = np.array([*p_start, *v], float)
     xe = np.array([*p_end, *v], float)
-    return Tracklet(tid, round(start_s * S), round(end_s * S), xs, P, xe, P, app, app)
+    n = 0 if app is None else views
+    return Tracklet(tid, round(start_s * S), round(end_s * S), xs, P, xe, P, app, app, app, n)
 
 
 # A walks along +x at 1 m/s and ends at x = 0, t = 10 s; candidates B start after a gap.
@@ -50,7 +51,7 @@ def test_appearance_gate_and_cost():
     # without descriptors motion alone decides
     no_app = [tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0)), tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0))]
     assert stitch_links(no_app) == [(0, 1)]
-    assert stitch_links([a, same_path_blue], config=StitchConfig(max_appearance=1.0)) == [(0, 1)]
+    assert stitch_links([a, same_path_blue], config=StitchConfig(max_appearance=200.0)) == [(0, 1)]
 
 
 def test_one_to_one_and_chains():
@@ -66,3 +67,39 @@ def test_one_to_one_and_chains():
     assert sorted(links) == [(0, 1), (1, 2), (10, 11), (11, 12)]
     root = chain_links([p.track_id for p in parts], links)
     assert root == {0: 0, 1: 0, 2: 0, 10: 10, 11: 10, 12: 10}
+
+
+def test_unknown_appearance_does_not_beat_agreeing_colours():
+    # A (red) ends; a laser tracklet without colours starts right on its path, a red one a little off it:
+    # the red continuation wins, the laser tracklet may only follow the red one
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    laser = tl(1, 10.5, 11.0, (0.5, 0.0), (1.0, 0.0))
+    red = tl(2, 11.0, 15.0, (1.1, 0.3), (5.0, 0.3), app=RED)
+    assert (0, 2) in stitch_links([a, laser, red])
+    # one or two crops are not enough to judge colours: such a tracklet counts as unknown
+    few = tl(3, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=2)
+    assert stitch_links([a, few]) == [(0, 3)]
+
+
+def test_re_identification_after_a_long_absence():
+    a = tl(0, 0.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    back_red = tl(1, 30.0, 40.0, (4.0, 3.0), (0.0, 3.0), v=(-1.0, 0.0), app=RED + 2.0)
+    back_blue = tl(2, 30.0, 40.0, (4.0, -3.0), (0.0, -3.0), v=(-1.0, 0.0), app=BLUE)
+    assert stitch_links([a, back_red, back_blue]) == [(0, 1)]
+    assert stitch_links([a, back_blue]) == []
+    assert stitch_links([a, back_red], config=StitchConfig(reid_max_gap_s=0.0)) == []
+    assert stitch_links([a, tl(3, 30.0, 40.0, (4.0, 3.0), (0.0, 3.0), app=RED, views=2)]) == []
+    # too far to have walked there in the gap
+    far = tl(4, 30.0, 40.0, (60.0, 0.0), (70.0, 0.0), app=RED)
+    assert stitch_links([a, far]) == []
+
+
+def test_two_people_are_not_joined_through_a_laser_tracklet():
+    # red ends, a colourless laser tracklet bridges the gap by motion, blue starts where it ends: the laser
+    # tracklet may continue one of them, but red and blue stay two people
+    red = tl(0, 0.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    laser = tl(1, 10.5, 12.0, (0.5, 0.0), (2.0, 0.0))
+    blue = tl(2, 12.5, 20.0, (2.5, 0.0), (10.0, 0.0), app=BLUE)
+    links = stitch_links([red, laser, blue])
+    assert len(links) == 1
+    assert links[0] in ((0, 1), (1, 2))

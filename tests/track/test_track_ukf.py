@@ -163,7 +163,7 @@ def test_appearance_gate_prevents_swaps_between_close_people(sim):
     sim.occlude(scene, 0, 10.0, 1.5)
     det = sim.detect(scene, seed=13)
     plain = track_sequence(UkfTracker(), det.observations)
-    cfg = UkfTrackerConfig(appearance_gate=0.45, appearance_weight=2.0)
+    cfg = UkfTrackerConfig(appearance_gate=15.0, appearance_weight=0.1)
     with_app = track_sequence(UkfTracker(config=cfg), det.observations)
     n_plain, _ = sim.id_switches(plain, det.owner)
     n_app, _ = sim.id_switches(with_app, det.owner)
