@@ -96,7 +96,11 @@ def _lab_median(px: NDArray[np.uint8]) -> FloatArray | None:
 
 
 def clothing_colours(
-    pano: NDArray[np.uint8], boxes: ArrayLike, keypoints: ArrayLike | None = None
+    pano: NDArray[np.uint8],
+    boxes: ArrayLike,
+    keypoints: ArrayLike | None = None,
+    *,
+    min_height_frac: float = 0.06,
 ) -> NDArray[np.float32]:
     """Appearance descriptors of the people in one panorama.
 
@@ -104,15 +108,22 @@ def clothing_colours(
         pano: (H, W, 3) uint8 BGR panorama.
         boxes: (N, 4) ``u1, v1, u2, v2`` panorama boxes (``u2`` may run past W across the seam).
         keypoints: (N, 17, 3) COCO keypoints ``(u, v, score)`` or None (box fractions are used).
+        min_height_frac: boxes shorter than this fraction of the panorama height are not described (a
+            person beyond ~8 m: a few blurred pixels, mixed with the background; on simulated walkers such
+            boxes were closer to another person's colours than to their own 38 % of the time, vs 1–3 %
+            for taller boxes).
 
     Returns:
-        (N, 6) float32 ``[L*, a*, b*]`` of the torso then of the legs; an all-NaN row when a region has too
-        few pixels (a tiny or clipped box).
+        (N, 6) float32 ``[L*, a*, b*]`` of the torso then of the legs; an all-NaN row when the box is too
+        small or a region has too few pixels.
     """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     kps = None if keypoints is None else np.asarray(keypoints, dtype=np.float64).reshape(-1, 17, 3)
     out = np.full((len(b), APPEARANCE_DIM), np.nan, np.float32)
+    min_h = min_height_frac * pano.shape[0]
     for i, box in enumerate(b):
+        if box[3] - box[1] < min_h:
+            continue
         regions = None if kps is None else _keypoint_regions(pano, box, kps[i])
         torso, legs = regions if regions is not None else _box_regions(pano, box)
         t, g = _lab_median(torso), _lab_median(legs)

@@ -111,16 +111,7 @@ def _run(obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig) -> Filter
         z[i - first] = obs[i].xy[r]
         R[i - first] = obs[i].cov[r]
     t = cfg.tracker
-    return filter_track(
-        stamps,
-        z,
-        R,
-        accel_sigma=t.accel_sigma,
-        init_speed_sigma=t.init_speed_sigma,
-        alpha=t.alpha,
-        beta=t.beta,
-        kappa=t.kappa,
-    )
+    return filter_track(stamps, z, R, accel_sigma=t.accel_sigma, init_speed_sigma=t.init_speed_sigma)
 
 
 def _descriptors(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32]:

@@ -91,7 +91,7 @@ class StitchConfig:
     n_sigma: float = 3.0
     max_accel_speed: float = 2.0
     max_speed: float = 2.5
-    max_appearance: float = 15.0
+    max_appearance: float = 25.0
     appearance_weight: float = 1.0
     reid_max_gap_s: float = 60.0
     reid_max_appearance: float = 8.0

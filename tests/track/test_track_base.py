@@ -116,8 +116,9 @@ def test_clothing_colours_from_the_box_and_the_keypoints():
     # across the 0/360° seam
     pano_s, box_s = _person_panorama((40, 40, 190), (120, 70, 40), u0=380, seam=True)
     np.testing.assert_allclose(clothing_colours(pano_s, box_s), d, atol=1.0)
-    # a box too small to describe gives an all-NaN row
-    assert np.isnan(clothing_colours(pano, [[10, 10, 12, 12]])).all()
+    # a box too small to describe gives an all-NaN row; so does a far person's (short) box
+    assert np.isnan(clothing_colours(pano, [[10, 10, 12, 12]], min_height_frac=0.0)).all()
+    assert np.isnan(clothing_colours(pano, box, min_height_frac=0.8)).all()
 
 
 def test_appearance_distance_is_the_worse_of_torso_and_legs():
