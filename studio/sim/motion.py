@@ -379,10 +379,11 @@ def _step_person(
     step = pp.v * DT * np.array([np.cos(pp.heading), np.sin(pp.heading)])
     new = pp.pos + step
     ob = planner.world.obstacles
+    d_new = float(np.hypot(*(new - robot[:2])))
+    # the robot's body blocks steps towards it; someone it drove up to can still step away
+    by_robot = d_new < _ROBOT_R + 0.28 and d_new < float(np.hypot(*(pp.pos - robot[:2])))
     blocked = (
-        not _walkable(*new)
-        or float(np.hypot(*(new - robot[:2]))) < _ROBOT_R + 0.28
-        or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
+        not _walkable(*new) or by_robot or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
     )
     if blocked:
         pp.v *= 0.5
