@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from test_calib_cli import extrinsics_args
 
 from studio.calibrate.extrinsics import (
     CalibrationError,
@@ -150,21 +151,7 @@ def test_cli_central_model_writes_no_lens_offset(tmp_path: Path, capsys: pytest.
     csv = tmp_path / "corr.csv"
     np.savetxt(csv, np.column_stack([xyz, uv]), delimiter=",", header="x,y,z,u,v", comments="")
     out = tmp_path / "calib.yaml"
-    assert (
-        main(
-            [
-                "calibrate",
-                "extrinsics",
-                "--correspondences",
-                str(csv),
-                "--image-size",
-                "3840x1920",
-                "--out",
-                str(out),
-            ]
-        )
-        == 0
-    )
+    assert main(["calibrate", *extrinsics_args(csv, out)]) == 0
     assert "lens_offset" not in yaml.safe_load(out.read_text())["camera"]
     text = capsys.readouterr().out
     assert "central (one centre)" in text
