@@ -2,13 +2,16 @@
 
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2
     .venv/bin/python bench/replay_tracking.py --scenario static --seeds 1 --switches
+    .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 --image-period 0.3
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs
 once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a
 contract: delete it when the detectors change). Each call then runs the static-world filter, fusion and
 offline tracking exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also
 lists every identity switch (frame, ground-truth id, range from the robot, distance to the nearest other
-person, the track ids before and after). The recordings are those of ``bench/run_table.py``.
+person, the track ids before and after). ``--image-period`` emulates another image detector period from a
+pass one that ran the detector on every frame (stored separately). The recordings are those of
+``bench/run_table.py``.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import argparse
 import pickle
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +37,8 @@ from studio.pipeline.label import fuse_all, perceive, track_all
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
     """The stored pass-one output of ``rec`` (computed and stored on the first call)."""
-    path = OUT / "perception" / f"{rec.name}.pkl"
+    tag = "" if options.image_period_s == LabelOptions().image_period_s else "-every-frame"
+    path = OUT / "perception" / f"{rec.name}{tag}.pkl"
     if not path.exists():
         sizes: dict[str, tuple[int, int]] = {}
 
@@ -53,6 +58,21 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
     return frames, cam
+
+
+def thin_images(frames: list[Any], period_s: float) -> list[Any]:
+    """Pass one as if the image detector had run at most every ``period_s`` (the rule of ``perceive``), from
+    a pass one that ran it on every frame."""
+    out, last = [], None
+    for f in frames:
+        if f.image is None:
+            out.append(f)
+        elif last is None or f.stamp_ns - last >= period_s * 1e9 - 1e6:
+            last = f.stamp_ns
+            out.append(f)
+        else:
+            out.append(replace(f, image=None, appearance=None))
+    return out
 
 
 def switches(labels: list[Any], ev: Any, gt: LabelSet) -> None:
@@ -81,11 +101,22 @@ def main() -> None:
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--seconds", type=float, default=None)
     ap.add_argument("--switches", action="store_true", help="list every identity switch")
+    ap.add_argument(
+        "--image-period",
+        type=float,
+        default=None,
+        help="emulate this image detector period, s (pass one then runs the detector on every frame once)",
+    )
     args = ap.parse_args()
     options = LabelOptions()
     for seed in args.seeds:
         rec = recording(args.scenario, args.seconds, seed)
-        frames, cam = perception(rec, options)
+        if args.image_period is None:
+            frames, cam = perception(rec, options)
+        else:
+            frames, cam = perception(rec, replace(options, image_period_s=0.0))
+            frames = thin_images(frames, args.image_period)
+            options = replace(options, image_period_s=args.image_period)
         gt = read_labels(rec / "ground_truth.jsonl")
         t = time.perf_counter()
         fused = fuse_all(frames, cam, options)

@@ -344,6 +344,27 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
     return Observations(fr.stamp_ns, xy, cov, obs.source, obs.score, app, np.arange(len(obs)))
 
 
+def tracking_config(options: LabelOptions, *, has_camera: bool) -> Any:
+    """``options.tracking`` with its time windows stretched to the image detector's period.
+
+    People only the camera sees (beside the robot, where its body hides them from the lasers, or beyond the
+    lasers' reach) are observed on image frames only, every ``image_period_s`` (every 6th frame of a 30 Hz
+    camera at the default 0.2 s): a tentative track must be able to collect ``confirm_hits`` of them in its
+    confirmation window, and neither a tentative track nor a tracklet may be cut in the gaps between them.
+    """
+    cfg = options.tracking
+    period = options.image_period_s
+    if not has_camera or options.sources == "laser" or period <= 0:
+        return cfg
+    t = cfg.tracker
+    tracker = replace(
+        t,
+        confirm_window_s=max(t.confirm_window_s, (t.confirm_hits - 1) * period + 0.05),
+        tentative_max_coast_s=max(t.tentative_max_coast_s, 1.5 * period),
+    )
+    return replace(cfg, tracker=tracker, split_gap_s=max(cfg.split_gap_s, 1.5 * period))
+
+
 def track_all(
     frames: list[PerceptionFrame], fused: list[FrameResult], options: LabelOptions, *, has_camera: bool
 ) -> tuple[list[LabelFrame], list[FrameResult]]:
@@ -355,12 +376,13 @@ def track_all(
     """
     from studio.track.offline import track_offline
 
+    config = tracking_config(options, has_camera=has_camera)
     observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
-    result = track_offline(observations, config=options.tracking)
+    result = track_offline(observations, config=config)
     if options.recover_radius > 0 and options.sources != "camera":
         fused = recover_missed(fused, result, options)
         observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
-        result = track_offline(observations, config=options.tracking)
+        result = track_offline(observations, config=config)
     # camera confirmation and minimum duration, per track
     camera_hits: dict[int, list[int]] = {}
     span: dict[int, list[int]] = {}

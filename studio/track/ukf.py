@@ -7,14 +7,15 @@ the negative log-likelihood ``d² + log det S`` of the gated pairs (``d²`` the 
 gate from the χ² distribution with 2 degrees of freedom).
 
 Life cycle: an unmatched observation starts a *tentative* track; it becomes *confirmed* after M hits within
-its last N frames, and dies if it cannot get there. A confirmed track that misses a frame is *lost*
-(coasting on its prediction) until it is observed again, or deleted when it has not been observed for
-``max_coast_s`` seconds.
+``confirm_window_s`` seconds of its birth, and dies at the first frame after that window without them (or
+when unseen for ``tentative_max_coast_s``). The window is in seconds, not frames, so a sensor that observes
+a person on only some frames (an image detector run at a lower rate than the frames) can still confirm
+them. A confirmed track that misses a frame is *lost* (coasting on its prediction) until it is observed
+again, or deleted when it has not been observed for ``max_coast_s`` seconds.
 """
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,8 +44,8 @@ class UkfTrackerConfig:
         gate_prob: probability mass of the χ² (2 dof) gate on the squared Mahalanobis distance.
         use_logdet: add ``log det S`` to the assignment cost (prefers precise observations and tracks).
         confirm_hits: M, hits needed to confirm a tentative track ...
-        confirm_window: N, ... within its last N frames; a tentative track that can no longer reach M hits
-            in N frames is deleted.
+        confirm_window_s: ... within this many seconds of its birth; a tentative track still short of M
+            hits is deleted at the first frame after that (0.45 s: 3 of the first 5 frames at 10 Hz).
         tentative_max_coast_s: a tentative track unobserved for longer than this is deleted, seconds.
         max_coast_s: a confirmed track unobserved for longer than this is deleted, seconds.
         birth_min_separation_m: an unmatched observation closer than this to a confirmed track's position
@@ -67,7 +68,7 @@ class UkfTrackerConfig:
     gate_prob: float = 0.999
     use_logdet: bool = True
     confirm_hits: int = 3
-    confirm_window: int = 5
+    confirm_window_s: float = 0.45
     tentative_max_coast_s: float = 0.5
     max_coast_s: float = 2.0
     birth_min_separation_m: float = 0.25
@@ -82,8 +83,8 @@ class UkfTrackerConfig:
     kappa: float = 0.0
 
     def __post_init__(self) -> None:
-        if not 1 <= self.confirm_hits <= self.confirm_window:
-            raise ValueError("need 1 <= confirm_hits <= confirm_window")
+        if self.confirm_hits < 1 or not self.confirm_window_s >= 0:
+            raise ValueError("need confirm_hits >= 1 and confirm_window_s >= 0")
         if self.accel_sigma <= 0 or self.init_speed_sigma <= 0:
             raise ValueError("accel_sigma and init_speed_sigma must be positive")
         if self.max_coast_s < 0 or self.tentative_max_coast_s < 0:
@@ -97,9 +98,9 @@ class _Track:
     ukf: UnscentedKalmanFilter
     stamp_ns: int
     last_hit_ns: int
-    history: deque[bool]
+    birth_ns: int
     state: str = "tentative"
-    misses_since_birth: int = 0
+    hits: int = 1
     det_index: int = -1
     appearance: NDArray[np.float32] | None = None
     z_pred: FloatArray = field(default_factory=lambda: np.zeros(2))
@@ -154,6 +155,10 @@ class UkfTracker:
                 f"observation stamps must not decrease ({obs.stamp_ns} ns after {self._stamp_ns} ns)"
             )
         self._stamp_ns = obs.stamp_ns
+        window_ns = cfg.confirm_window_s * 1e9
+        self._tracks = [
+            t for t in self._tracks if t.state != "tentative" or obs.stamp_ns - t.birth_ns <= window_ns
+        ]  # too few hits in the confirmation window
         for t in self._tracks:
             self._predict(t, obs.stamp_ns)
 
@@ -244,23 +249,18 @@ class UkfTracker:
         t.ukf.P = 0.5 * (t.ukf.P + t.ukf.P.T)
         t.det_index = int(obs.det_index[row])
         t.last_hit_ns = obs.stamp_ns
-        t.history.append(True)
         if t.state == "tentative":
-            if sum(t.history) >= cfg.confirm_hits:
+            t.hits += 1
+            if t.hits >= cfg.confirm_hits:
                 t.state = "confirmed"
         else:
             t.state = "confirmed"
 
     def _miss(self, t: _Track, stamp_ns: int) -> None:
         cfg = self.config
-        t.history.append(False)
         unseen_s = (stamp_ns - t.last_hit_ns) * 1e-9
         if t.state == "tentative":
-            t.misses_since_birth += 1
-            if (
-                t.misses_since_birth > cfg.confirm_window - cfg.confirm_hits
-                or unseen_s > cfg.tentative_max_coast_s
-            ):
+            if unseen_s > cfg.tentative_max_coast_s:
                 t.state = "deleted"
         elif unseen_s > cfg.max_coast_s:
             t.state = "deleted"
@@ -285,7 +285,7 @@ class UkfTracker:
                 ukf,
                 obs.stamp_ns,
                 obs.stamp_ns,
-                deque([True], maxlen=cfg.confirm_window),
+                obs.stamp_ns,
                 det_index=int(obs.det_index[row]),
                 appearance=None
                 if obs.appearance is None or not np.all(np.isfinite(obs.appearance[row]))

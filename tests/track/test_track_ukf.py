@@ -32,34 +32,45 @@ def test_is_a_tracker():
 
 def test_config_is_checked():
     with pytest.raises(ValueError, match="confirm_hits"):
-        UkfTrackerConfig(confirm_hits=4, confirm_window=3)
+        UkfTrackerConfig(confirm_hits=0)
+    with pytest.raises(ValueError, match="confirm_window_s"):
+        UkfTrackerConfig(confirm_window_s=float("nan"))
     with pytest.raises(ValueError, match="probability"):
         UkfTrackerConfig(gate_prob=1.5)
 
 
 def test_single_clutter_hit_dies_tentative():
-    tr = UkfTracker(config=UkfTrackerConfig(confirm_hits=3, confirm_window=5))
+    tr = UkfTracker(config=UkfTrackerConfig(confirm_hits=3, confirm_window_s=0.45))
     assert tr.step(obs(0.0, (1.0, 1.0))) == []  # tentative tracks are not reported
     assert states(tr) == {0: "tentative"}
     for k in (1, 2):
         assert tr.step(obs(0.1 * k)) == []
         assert states(tr) == {0: "tentative"}
-    tr.step(obs(0.3))  # third miss: 3 > N - M, it can no longer be confirmed
+    tr.step(obs(0.3))
+    tr.step(obs(0.4))
+    assert states(tr) == {0: "tentative"}
+    tr.step(obs(0.5))  # the first frame after the 0.45 s window, without 3 hits
     assert states(tr) == {}
 
 
-# (hits per frame at 10 Hz, M, N, state after each frame ("-" deleted))
+# (hits per frame at 10 Hz, M, window s, state after each frame ("-" deleted))
+T, D = "tentative", "-"
 LIFE = [
-    ("confirmed after M hits", [1, 1, 1], 3, 5, ["tentative", "tentative", "confirmed"]),
-    ("M of N with a miss", [1, 0, 1, 1], 3, 5, ["tentative", "tentative", "tentative", "confirmed"]),
-    ("too many misses", [1, 0, 1, 0, 0], 3, 5, ["tentative", "tentative", "tentative", "tentative", "-"]),
-    ("confirmed at once (M=1)", [1, 0], 1, 1, ["confirmed", "lost"]),
+    ("confirmed after M hits", [1, 1, 1], 3, 0.45, [T, T, "confirmed"]),
+    ("M in the window with a miss", [1, 0, 1, 1], 3, 0.45, [T, T, T, "confirmed"]),
+    ("M-th hit on the window's last frame", [1, 0, 0, 1, 1], 3, 0.45, [T, T, T, T, "confirmed"]),
+    ("too few hits in the window", [1, 0, 1, 0, 0, 0], 3, 0.45, [T, T, T, T, T, D]),
+    ("a hit right after the window does not save it", [1, 0, 1, 0, 0, 1], 3, 0.45, [T] * 5 + [D]),
+    ("confirmed at once (M=1)", [1, 0], 1, 0.0, ["confirmed", "lost"]),
+    # an image detector every third frame: confirmed only with a window that spans 3 of its frames
+    ("every third frame, 0.45 s", [1, 0, 0, 1, 0, 0, 1], 3, 0.45, [T] * 5 + [D, D]),
+    ("every third frame, 0.65 s", [1, 0, 0, 1, 0, 0, 1], 3, 0.65, [T] * 6 + ["confirmed"]),
 ]
 
 
-@pytest.mark.parametrize(("name", "hits", "M", "N", "expected"), LIFE, ids=[c[0] for c in LIFE])
-def test_life_cycle_table(name, hits, M, N, expected):
-    cfg = UkfTrackerConfig(confirm_hits=M, confirm_window=N, tentative_max_coast_s=10.0)
+@pytest.mark.parametrize(("name", "hits", "M", "window", "expected"), LIFE, ids=[c[0] for c in LIFE])
+def test_life_cycle_table(name, hits, M, window, expected):
+    cfg = UkfTrackerConfig(confirm_hits=M, confirm_window_s=window, tentative_max_coast_s=10.0)
     tr = UkfTracker(config=cfg)
     got = []
     for k, h in enumerate(hits):
@@ -139,7 +150,7 @@ def test_birth_suppressed_next_to_a_confirmed_track_and_gate_blocks_jumps():
 
 def test_measurement_noise_comes_from_each_observation():
     def after(sigma: float) -> float:
-        tr = UkfTracker(config=UkfTrackerConfig(confirm_hits=1, confirm_window=1))
+        tr = UkfTracker(config=UkfTrackerConfig(confirm_hits=1, confirm_window_s=0.0))
         tr.step(obs(0.0, (0.0, 0.0), sigma=0.05))
         (e,) = tr.step(obs(0.1, (0.1, 0.0), sigma=sigma))
         return float(e.xy[0])

@@ -1,0 +1,66 @@
+"""Offline tracking in the labeling pipeline: people observed only on image frames (``track_all``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studio.fuse.base import PersonObservations
+from studio.geometry.se import Pose2
+from studio.pipeline import LabelOptions
+from studio.pipeline.base import FrameResult
+from studio.pipeline.label import PerceptionFrame, track_all, tracking_config
+
+T0 = 1_700_000_000_000_000_000
+
+
+def _camera_only_run(fps: float, period_s: float, seconds: float = 4.0):
+    """A person walking at 0.5 m/s, 3 m from a still robot, seen only by the image detector (beside the
+    robot, where its body hides them from the lasers): an image-only observation on the frames where the
+    detector runs (every ``period_s``), nothing on the others."""
+    n = int(seconds * fps)
+    stamps = [T0 + round(k * 1e9 / fps) for k in range(n)]
+    pose = Pose2(0.0, 0.0, 0.0)
+    frames, fused, last = [], [], None
+    for k, t in enumerate(stamps):
+        due = last is None or t - last >= period_s * 1e9 - 1e6
+        if due:
+            last = t
+            xy = np.array([[0.0, 3.0 + 0.5 * (t - T0) * 1e-9]])
+            obs = PersonObservations(
+                xy, (0.15**2 * np.eye(2))[None], np.array([0.8]), ("image",), ("foot-row",),
+                np.array([[100.0, 200.0, 140.0, 330.0]]), np.array([0]), np.array([-1]),
+            )  # fmt: skip
+        else:
+            obs = PersonObservations.concat([])
+        no_scan = (np.zeros(0), np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
+        frames.append(PerceptionFrame(k, t, pose, None, None, None, *no_scan))
+        fused.append(FrameResult(k, t, pose, obs, None))
+    return frames, fused
+
+
+@pytest.mark.parametrize(("fps", "period"), [(10.0, 0.2), (30.0, 0.2), (10.0, 0.3), (15.0, 0.4)])
+def test_camera_only_person_is_tracked_whatever_the_frame_rate(fps, period):
+    frames, fused = _camera_only_run(fps, period)
+    options = LabelOptions(image_period_s=period)
+    labels, _ = track_all(frames, fused, options, has_camera=True)
+    ids = [p.id for lf in labels for p in lf.people]
+    assert len(set(ids)) == 1, set(ids)  # one person, one identity
+    covered = sum(1 for lf in labels if lf.people) / len(labels)
+    assert covered > 0.85, covered  # labeled between the image frames too (smoothed positions)
+    truth = {lf.frame: 3.0 + 0.5 * (lf.stamp_ns - T0) * 1e-9 for lf in labels}
+    err = [abs(p.y - truth[lf.frame]) for lf in labels for p in lf.people]
+    assert np.median(err) < 0.1
+
+
+def test_tracking_windows_follow_the_image_period():
+    base = LabelOptions().tracking
+    at = {p: tracking_config(LabelOptions(image_period_s=p), has_camera=True) for p in (0.0, 0.2, 0.4)}
+    assert at[0.0] == base
+    assert at[0.2].tracker.confirm_window_s == pytest.approx(0.45)
+    assert at[0.4].tracker.confirm_window_s == pytest.approx(0.85)
+    assert at[0.4].tracker.tentative_max_coast_s == pytest.approx(0.6)
+    assert at[0.4].split_gap_s == pytest.approx(0.6)
+    # no camera, or the laser alone: the laser observes every frame, nothing to stretch
+    assert tracking_config(LabelOptions(image_period_s=0.4), has_camera=False) == base
+    assert tracking_config(LabelOptions(image_period_s=0.4, sources="laser"), has_camera=True) == base
