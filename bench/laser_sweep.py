@@ -33,11 +33,28 @@ def in_wedge(xy: np.ndarray, *, deg: float, rmax: float) -> np.ndarray:
     return (np.abs(ang) <= deg) & (np.hypot(xy[:, 0], xy[:, 1]) <= rmax)
 
 
-def collect(params: SegmentParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Features ``(S, F)``, labels ``(S,)`` (1 leg, 0 not, −1 unknown) and group names of all segments."""
+def noisy(points: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """``points`` (laser frame) with Gaussian range noise of ``sigma`` metres added along each beam."""
+    r = np.hypot(points[:, 0], points[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return points * ((r + rng.normal(0.0, sigma, len(r))) / r)[:, None]
+
+
+def collect(params: SegmentParams, *, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Features ``(S, F)``, labels ``(S,)`` (1 leg, 0 not, −1 unknown) and group names of all segments.
+
+    ``noise`` > 0 adds a second copy of every scan with that much extra Gaussian range noise (metres), so the
+    model also learns legs and clutter from scanners noisier than the one that recorded these bags; its
+    groups carry a ``+noise`` suffix.
+    """
     feats, ys, groups = [], [], []
+    rng = np.random.default_rng(0)
+    copies = [(0.0, "")] + ([(noise, "+noise")] if noise > 0 else [])
     for bag in sorted((DATA / "legs_labelled").glob("*.bag")):
-        for scan, legs in labelled_scans(bag):
+        for (scan0, legs), (sig, tag) in ((x, c) for x in labelled_scans(bag) for c in copies):
+            scan = scan0 if sig == 0 else type(scan0)(
+                scan0.topic, scan0.stamp_ns, noisy(scan0.points, sig, rng), scan0.valid, scan0.angle_increment
+            )  # fmt: skip
             segs = segment_scan(scan.points, scan.valid, params=params)
             if not segs:
                 continue
@@ -49,13 +66,15 @@ def collect(params: SegmentParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             y = np.where(d < MATCH_RADIUS, 1, np.where(in_wedge(c, deg=18.0, rmax=5.4), -1, 0))
             feats.append(f)
             ys.append(y)
-            groups += [bag.name.split("_extracted")[0]] * len(segs)
-    for scan in read_scans(DATA / "negative_2.bag"):
-        segs = segment_scan(scan.points, scan.valid, params=params)
-        if segs:
-            feats.append(segment_features(scan.points, segs, scan.valid))
-            ys.append(np.zeros(len(segs), dtype=int))
-            groups += ["negative_2" + scan.topic] * len(segs)
+            groups += [bag.name.split("_extracted")[0] + tag] * len(segs)
+    for scan0 in read_scans(DATA / "negative_2.bag"):
+        for sig, tag in copies:
+            pts = scan0.points if sig == 0 else noisy(scan0.points, sig, rng)
+            segs = segment_scan(pts, scan0.valid, params=params)
+            if segs:
+                feats.append(segment_features(pts, segs, scan0.valid))
+                ys.append(np.zeros(len(segs), dtype=int))
+                groups += ["negative_2" + scan0.topic + tag] * len(segs)
     return np.concatenate(feats), np.concatenate(ys), np.array(groups)
 
 
@@ -99,23 +118,30 @@ def main() -> int:
     ap.add_argument("--l2", type=float, default=1e-3)
     ap.add_argument("--jump-min", type=float, default=SegmentParams.jump_min)
     ap.add_argument("--jump-beams", type=float, default=SegmentParams.jump_beams)
+    ap.add_argument("--noise", type=float, default=0.0, help="noise augmentation: extra range noise, m")
     args = ap.parse_args()
-    feats, y, g = collect(SegmentParams(jump_min=args.jump_min, jump_beams=args.jump_beams))
+    params = SegmentParams(jump_min=args.jump_min, jump_beams=args.jump_beams)
+    feats, y, g = collect(params, noise=args.noise)
     keep = y >= 0
     feats, y, g = feats[keep], y[keep], g[keep]
-    labelled = sorted({x for x in g if x.startswith("positive")})
-    negs = sorted({x for x in g if x.startswith("negative")})
+    g = g.astype(str)
+    base = np.char.replace(g, "+noise", "")
+    clean = ~np.char.endswith(g, "+noise")
+    labelled = sorted({x for x in base if x.startswith("positive")})
+    negs = sorted({x for x in base if x.startswith("negative")})
     prob = np.zeros(len(y))
     for i, name in enumerate(labelled):  # leave one labelled bag (and one negative scanner) out
-        test = (g == name) | (g == negs[i % len(negs)])
-        prob[test] = fit(feats[~test], y[~test], l2=args.l2)(feats[test])
+        out = (base == name) | (base == negs[i % len(negs)])  # both copies of the held-out bags
+        prob[out] = fit(feats[~out], y[~out], l2=args.l2)(feats[out])
+    # held-out numbers on the recorded scans only (the noisy copies are training data)
+    p_c, y_c = prob[clean], y[clean]
     n_neg_scans = {"negative_2/left_scan": 435, "negative_2/rear_scan": 435, "negative_2/right_scan": 434}
-    neg = np.char.startswith(g.astype(str), "negative")
+    neg = np.char.startswith(g[clean], "negative")
     print("held-out segment-level (leave-one-bag-out):")
     print(f"{'thr':>5} {'leg recall':>10} {'neg seg/scan':>12}")
     for t in (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9):
-        rec = ((prob >= t) & (y == 1)).sum() / (y == 1).sum()
-        fpps = ((prob >= t) & neg).sum() / sum(n_neg_scans.values())
+        rec = ((p_c >= t) & (y_c == 1)).sum() / (y_c == 1).sum()
+        fpps = ((p_c >= t) & neg).sum() / sum(n_neg_scans.values())
         print(f"{t:5.2f} {rec:10.3f} {fpps:12.2f}")
     model = fit(feats, y, l2=args.l2)
     print("\n" + literal(model))

@@ -47,6 +47,8 @@ class FusionConfig:
             simulated walkers (``moving``, seeds 1–2): pairs 0.04–0.05 m, single legs 0.10–0.12 m, blobs
             0.10–0.13 m per axis.
         cluster_sigma: 1-σ of a scan-cluster position, m.
+        same_person_radius: a laser detection no box took, inside the span of a box that took one and this
+            close to it, is that person's other leg (or a part of them), not someone else, m.
         max_range: ignore people farther than this from the camera, m.
         floor_z: height of the floor in the base frame, m.
     """
@@ -67,6 +69,7 @@ class FusionConfig:
     laser_sigma: float = 0.05
     leg_sigma: float = 0.11
     cluster_sigma: float = 0.10
+    same_person_radius: float = 0.5
     max_range: float = 12.0
     floor_z: float = 0.0
 

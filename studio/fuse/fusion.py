@@ -178,6 +178,7 @@ def fuse_frame(
     n_b = 0 if image is None else len(image.boxes)
     parts: list[PersonObservations] = []
     used_laser = np.zeros(n_l, dtype=bool)
+    absorbed = np.zeros(n_l, dtype=bool)
     if n_b and image is not None:
         if camera is None:
             raise ValueError("fuse_frame: image detections need the camera")
@@ -208,6 +209,10 @@ def fuse_frame(
                 if cost[i, j] >= _BIG:
                     continue
                 used_laser[j] = True
+                # the same person's other leg (or a part of them): inside this box and next to its match
+                near = np.hypot(*(laser.xy - laser.xy[j]).T) <= cfg.same_person_radius
+                off = _offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
+                absorbed |= near & (np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac)
                 sc = 1.0 - (1.0 - image.scores[i]) * (1.0 - laser.scores[j])
                 parts.append(
                     _one(
@@ -277,7 +282,7 @@ def fuse_frame(
                 parts.append(obs)
     if n_l and laser is not None:
         static = np.zeros(n_l, bool) if laser_static is None else np.asarray(laser_static, bool).reshape(n_l)
-        rest = np.flatnonzero(~used_laser & ~static)
+        rest = np.flatnonzero(~used_laser & ~static & ~absorbed)
         if len(rest):
             parts.append(
                 PersonObservations(

@@ -179,3 +179,20 @@ def test_a_single_leg_is_less_certain_than_a_leg_pair() -> None:
     swapped = LaserDetections(two.xy, two.scores, np.array([1, 0]), two.radius)
     obs = fuse_frame(dets(person(3.0, 1.0)), swapped, camera=CAM, config=cfg)
     np.testing.assert_allclose(obs.cov[obs.source.index("fused")], cfg.leg_sigma**2 * np.eye(2))
+
+
+def test_the_other_leg_inside_a_matched_box_is_not_a_second_person() -> None:
+    # walking: the laser sees the two legs 0.35 m apart as two single-leg people; the box takes one, the
+    # other is the same person, not a laser-only someone else
+    obs = fuse_frame(dets(person(3.0, 1.0)), laser((3.1, 1.1), (2.85, 0.85)), camera=CAM)
+    assert obs.source == ("fused",)
+    # beyond same_person_radius, or outside the box, a laser person stays someone else
+    far = fuse_frame(dets(person(3.0, 1.0)), laser((3.0, 1.0), (4.2, 1.4)), camera=CAM)
+    assert sorted(far.source) == ["fused", "laser"]
+    off = fuse_frame(
+        dets(person(3.0, 1.0)),
+        laser((3.0, 1.0), (3.0, 1.45)),
+        camera=CAM,
+        config=FusionConfig(same_person_radius=0.0),
+    )
+    assert sorted(off.source) == ["fused", "laser"]
