@@ -8,7 +8,8 @@ ground truth) the first time it is needed and kept for later runs in ``default/`
 2. else the checkout's ``recordings/`` folder when it exists and is writable,
 3. else ``~/.cache/studio/recordings``.
 
-Delete that ``default/`` folder to regenerate it (it is also regenerated when its length does not match).
+Delete that ``default/`` folder to regenerate it (it is also regenerated when its length does not match, or
+when it was made by another version of the simulator: ``default/sim_version``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import os
 from pathlib import Path
 
 from studio.sim.base import SimRig
-from studio.sim.simulate import OUTPUT_FILES, Progress, simulate
+from studio.sim.simulate import OUTPUT_FILES, SIM_VERSION, Progress, simulate
 
 __all__ = ["DEFAULT_RECORDING", "default_recording", "recordings_root"]
 
@@ -51,13 +52,21 @@ def default_recording(*, root: Path | None = None, progress: Progress | None = N
     out = (root or recordings_root()) / "default"
     if _complete(out, sec):
         return out
+    (out / "sim_version").unlink(missing_ok=True)  # simulate() writes only into its own files' folder
     simulate(sc, out=out, seconds=sec, seed=seed, progress=progress)
+    (out / "sim_version").write_text(f"{SIM_VERSION}\n", encoding="utf-8")
     return out
 
 
 def _complete(out: Path, seconds: float) -> bool:
-    """All output files are there and the ground truth has one frame per image of ``seconds``."""
+    """All output files are there, made by this simulator version, and the ground truth has one frame per
+    image of ``seconds``."""
     if not all((out / name).is_file() for name in OUTPUT_FILES):
+        return False
+    try:
+        if (out / "sim_version").read_text(encoding="utf-8").strip() != str(SIM_VERSION):
+            return False
+    except OSError:
         return False
     rig = SimRig()
     expected = math.floor((seconds - rig.camera_offset_s) * rig.camera_rate_hz + 1e-9) + 1

@@ -3,7 +3,9 @@
 The robot runs its scenario program (turn on the spot, drive, wait) under speed and acceleration limits
 and stops for a person in its way. People walk from goal to goal (through doors when the goal is in
 another room) with a smooth speed profile, turn, stop for a while, keep clear of furniture, slow down or
-step aside for each other and wait for the robot. Odometry integrates the true wheel velocities with a
+step aside for each other and wait for the robot. Bodies do not overlap: a step that brings two people's
+centres closer than 0.4 m is blocked (stepping apart is free), except for someone stuck that way for 2 s,
+who squeezes past (two people meeting in a narrow door). Odometry integrates the true wheel velocities with a
 per-run scale error, a small curvature bias and noise proportional to the speed, so it drifts only while
 the robot moves.
 """
@@ -28,6 +30,8 @@ DT = 0.02
 """Simulation step, seconds (also the odometry period: 50 Hz)."""
 
 _ROBOT_R = 0.46  # half-diagonal of the 0.7 × 0.6 m body
+_BODY_GAP = 0.4  # m: two people's centres come no closer (shoulders ~0.45 m wide, bodies ~0.25 m deep)
+_SQUEEZE_S = 2.0  # s: someone blocked by another person this long squeezes past (narrow doors)
 _WALK = {  # walkable rectangles: rooms with 0.25 m margin to walls, plus door passages
     "A": (-5.75, 5.75, -3.75, 3.75),
     "B": (6.25, 11.75, -3.75, 3.75),
@@ -196,6 +200,7 @@ class _Person:
     dwell_heading: float | None = None
     waiting: float = 0.0
     ignore_robot_until: float = -1.0
+    blocked_s: float = 0.0
 
 
 def _robot_route(sc: Scenario) -> FloatArray:
@@ -382,9 +387,23 @@ def _step_person(
     d_new = float(np.hypot(*(new - robot[:2])))
     # the robot's body blocks steps towards it; someone it drove up to can still step away
     by_robot = d_new < _ROBOT_R + 0.28 and d_new < float(np.hypot(*(pp.pos - robot[:2])))
+    # nor can two bodies overlap: a step towards someone closer than _BODY_GAP is blocked (steps apart
+    # are free), unless the person has been stuck for _SQUEEZE_S (two people meeting in a narrow door)
+    d_new_q = [float(np.hypot(*(new - q.pos))) for j, q in enumerate(people) if j != i]
+    d_old_q = [float(np.hypot(*(pp.pos - q.pos))) for j, q in enumerate(people) if j != i]
+    closing = any(a < _BODY_GAP and a < b for a, b in zip(d_new_q, d_old_q, strict=True))
+    squeezing = pp.blocked_s >= _SQUEEZE_S
+    by_person = closing and not squeezing
     blocked = (
-        not _walkable(*new) or by_robot or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
+        not _walkable(*new)
+        or by_robot
+        or by_person
+        or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
     )
+    if squeezing:  # squeezes past until clear of everyone
+        pp.blocked_s = pp.blocked_s if min(d_new_q, default=np.inf) < _BODY_GAP else 0.0
+    else:
+        pp.blocked_s = pp.blocked_s + DT if by_person else 0.0
     if blocked:
         pp.v *= 0.5
     else:

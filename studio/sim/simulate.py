@@ -52,10 +52,21 @@ from studio.sim.render import PanoramaRenderer
 from studio.sim.scenarios import get_scenario
 from studio.sim.world import build_world
 
-__all__ = ["CAM_MIN_PIXELS", "GT_MAX_RANGE", "LASER_MIN_BEAMS", "OUTPUT_FILES", "START_NS", "simulate"]
+__all__ = [
+    "CAM_MIN_PIXELS",
+    "GT_MAX_RANGE",
+    "LASER_MIN_BEAMS",
+    "OUTPUT_FILES",
+    "SIM_VERSION",
+    "START_NS",
+    "simulate",
+]
 
 START_NS = 1_700_000_000_000_000_000
 """Stamp of the recording start, ns (fixed, so a seed gives identical bytes)."""
+SIM_VERSION = 2
+"""Raised whenever a scenario and seed simulate differently than before (2: bodies no longer overlap), so
+generated recordings that are kept (``studio demo``'s default) are made again."""
 GT_MAX_RANGE = 10.0
 CAM_MIN_PIXELS = 25
 LASER_MIN_BEAMS = 3

@@ -135,3 +135,8 @@ def test_default_recording_is_generated_once(tmp_path: Path, monkeypatch: pytest
     monkeypatch.setattr(default, "DEFAULT_RECORDING", ("static", 0.5, 0))  # another length: regenerated
     assert default.default_recording() == first
     assert len((first / "ground_truth.jsonl").read_text().splitlines()) == 5
+    stamp = (first / "recording.mcap").stat().st_mtime_ns
+    (first / "sim_version").write_text("1\n")  # made by an older simulator: regenerated
+    assert default.default_recording() == first
+    assert (first / "recording.mcap").stat().st_mtime_ns != stamp
+    assert (first / "sim_version").read_text().strip() == str(default.SIM_VERSION)

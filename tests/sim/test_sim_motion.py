@@ -41,3 +41,53 @@ def test_moving_seed_3_keeps_the_robot_moving():
     m = sim_motion.simulate_motion(sc, build_world(), seconds=sc.seconds, rng=r_motion)
     moving = np.hypot(*np.diff(m.robot[:, :2], axis=0).T) > 1e-4
     assert moving.mean() > 0.4
+
+
+def _standing(pos) -> sim_motion._Person:
+    return sim_motion._Person(np.array(pos, float), heading=0.0, cruise=1.2, dwell_left=1e9)
+
+
+def test_people_do_not_walk_through_each_other():
+    # a walker heading straight at someone standing still stops short of their body
+    walker = sim_motion._Person(np.zeros(2), heading=0.0, cruise=1.2, waypoints=[np.array([3.0, 0.0])])
+    stander = _standing((1.5, 0.0))
+    people, planner, robot = [walker, stander], _planner(), np.array([-4.0, -3.0, 0.0])
+    closest = np.inf
+    for k in range(int(1.5 / sim_motion.DT)):  # less than the squeeze-past time
+        for i, pp in enumerate(people):
+            sim_motion._step_person(pp, i, people, planner, robot, t=k * sim_motion.DT)
+        closest = min(closest, float(np.hypot(*(walker.pos - stander.pos))))
+    assert closest >= sim_motion._BODY_GAP - 0.05
+
+
+def _run(people, seconds: float) -> None:
+    planner, robot = _planner(), np.array([-4.0, -3.0, 0.0])
+    for k in range(int(seconds / sim_motion.DT)):
+        for i, pp in enumerate(people):
+            sim_motion._step_person(pp, i, people, planner, robot, t=k * sim_motion.DT)
+
+
+def test_two_people_inside_each_other_can_step_apart():
+    a = sim_motion._Person(np.zeros(2), heading=np.pi, cruise=1.2, waypoints=[np.array([-3.0, 0.0])])
+    b = _standing((0.1, 0.0))
+    _run([a, b], 1.0)
+    assert np.hypot(*(a.pos - b.pos)) > 0.4  # walking away from 0.1 m apart, accelerating from rest
+
+
+def test_someone_blocked_by_a_person_squeezes_past():
+    # two people meeting in a narrow door must not block each other for ever
+    a = sim_motion._Person(np.zeros(2), heading=0.0, cruise=1.2, waypoints=[np.array([3.0, 0.0])])
+    b = _standing((0.5, 0.0))
+    _run([a, b], 5.0)
+    assert a.pos[0] > 1.0  # past the person standing at x = 0.5
+
+
+def test_overlapping_people_are_rare_in_the_moving_scenario():
+    sc = get_scenario("moving")
+    r_motion, _, _ = np.random.default_rng(np.random.SeedSequence(1)).spawn(3)
+    m = sim_motion.simulate_motion(sc, build_world(), seconds=40.0, rng=r_motion)
+    P = m.people[..., :2].transpose(1, 0, 2)  # (time, person, 2)
+    d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)
+    iu = np.triu_indices(P.shape[1], 1)
+    close = d[:, iu[0], iu[1]] < 0.3
+    assert close.mean() < 1e-3, close.sum()
