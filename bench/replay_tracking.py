@@ -37,7 +37,7 @@ from studio.pipeline.label import fuse_all, perceive, track_all
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
     """The stored pass-one output of ``rec`` (computed and stored on the first call)."""
-    tag = "" if options.image_period_s == LabelOptions().image_period_s else "-every-frame"
+    tag = "-every-frame" if options.image_period_s == 0 else ""
     path = OUT / "perception" / f"{rec.name}{tag}.pkl"
     if not path.exists():
         sizes: dict[str, tuple[int, int]] = {}
