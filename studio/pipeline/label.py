@@ -227,7 +227,7 @@ def _static_masks(frames: list[PerceptionFrame]) -> tuple[list[NDArray[np.bool_]
     def scans() -> Iterator[tuple[FloatArray, FloatArray]]:
         for f in frames:
             for k in range(len(f.origins)):
-                sel = (f.origin_of_point == k) & np.isfinite(f.points[:, 0])
+                sel = f.origin_of_point == k  # in beam order, invalid beams NaN
                 yield (
                     f.robot_pose.apply(f.points[sel, :2].astype(np.float64)),
                     f.robot_pose.apply(f.origins[k]),

@@ -73,8 +73,10 @@ class StaticMap:
         """Accumulate scans into a map.
 
         Args:
-            scans_in_odom: per scan ``(points (M, 2), sensor_origin (2,))`` in the map frame, metres;
-                invalid beams NaN (they mark nothing: a missing return says nothing about free space).
+            scans_in_odom: per scan ``(points (M, 2), sensor_origin (2,))`` in the map frame, metres, in
+                beam order; invalid beams NaN (they mark nothing: a missing return says nothing about free
+                space). Keeping the invalid beams in place lets the free-space marking skip beams that
+                are closer together than a cell (see :func:`_ray_samples`).
             cell: cell size, metres.
             max_free_range: beams mark cells free up to this distance from the sensor, metres.
             free_margin: the last ``free_margin`` metres before a return are not marked free (range noise).
@@ -94,11 +96,11 @@ class StaticMap:
         for points, origin in scans_in_odom:
             pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
             o = np.asarray(origin, dtype=np.float64).reshape(2)
-            pts = pts[np.all(np.isfinite(pts), axis=1)]
             n += 1
-            if pts.shape[0] == 0:
+            finite = np.all(np.isfinite(pts), axis=1)
+            if not finite.any():
                 continue
-            hit = grid.cells(pts)
+            hit = grid.cells(pts[finite])
             # every ray sample lies in the box of the returns and the origin: grow the grid for that box
             box = [
                 hit.min(0, keepdims=True) - dilate,
@@ -219,18 +221,61 @@ class StaticMap:
 
 def _ray_samples(points: FloatArray, origin: FloatArray, *, step: float, margin: float,
                  max_range: float) -> FloatArray:  # fmt: skip
-    """Points every ``step`` metres along each beam from ``origin`` to ``margin`` before its return."""
+    """Points every ``step`` metres along each beam from ``origin`` to ``margin`` before its return.
+
+    ``points`` are one scan's returns in beam order (NaN rows for invalid beams). Near the sensor,
+    neighbouring beams are much closer together than ``step`` (a 0.25° scanner's beams are one 5 cm cell
+    apart only at 11.5 m), so sampling every beam there marks the same cells many times over: at a
+    distance ``t`` only every ``m``-th beam is sampled, ``m`` the largest power of two with
+    ``m · t · dθ ≤ step`` (``dθ`` the beam spacing, estimated from the scan), which keeps samples at most a
+    cell apart across the beams too. Points not in beam order (no consistent spacing) sample every beam.
+    """
     d = points - origin
     r = np.hypot(d[:, 0], d[:, 1])
-    reach = np.minimum(r - margin, max_range)
-    k = np.maximum(np.floor(reach / step).astype(np.int64), 0)
+    ok = np.isfinite(r) & (r > 0.0)
+    reach = np.where(ok, np.minimum(r - margin, max_range), 0.0)
+    k = np.maximum(np.floor(reach / step).astype(np.int64), 0)  # samples j = 0 .. k-1 at (j + 0.5) step
     if k.sum() == 0:
         return np.zeros((0, 2))
-    beam = np.repeat(np.arange(points.shape[0]), k)
-    start = np.cumsum(k) - k
-    t = (np.arange(k.sum()) - np.repeat(start, k) + 0.5) * step
-    u = d[beam] / r[beam, None]
-    return origin + u * t[:, None]
+    u = np.zeros_like(d)
+    u[ok] = d[ok] / r[ok, None]
+    # levels: sample j of beam i is kept when t_j lies in level L's band and i is a multiple of 2**L
+    bounds = [np.inf]
+    dtheta = _beam_spacing(d, ok)
+    if dtheta > 0.0:
+        while len(bounds) < 12 and 2 ** len(bounds) <= points.shape[0]:
+            bounds.append(step / (2 ** (len(bounds) + 1) * dtheta))
+    bounds.append(0.0)
+    idx = np.arange(points.shape[0])
+    parts = []
+    for level in range(len(bounds) - 1):
+        hi, lo = bounds[level], bounds[level + 1]  # t in (lo, hi]
+        j_lo = 0 if lo <= 0.0 else int(np.floor(lo / step - 0.5)) + 1
+        j_hi = k if not np.isfinite(hi) else np.minimum(k, int(np.floor(hi / step - 0.5)) + 1)
+        count = np.maximum(j_hi - j_lo, 0)
+        count[idx % (2**level) != 0] = 0
+        total = int(count.sum())
+        if total == 0:
+            continue
+        beam = np.repeat(idx, count)
+        start = np.cumsum(count) - count
+        t = (np.arange(total) - np.repeat(start, count) + j_lo + 0.5) * step
+        parts.append(origin + u[beam] * t[:, None])
+    return np.concatenate(parts) if parts else np.zeros((0, 2))
+
+
+def _beam_spacing(d: FloatArray, ok: NDArray[np.bool_]) -> float:
+    """The angle between neighbouring beams of a scan in beam order, rad; 0 when the rows show no
+    consistent spacing (not in beam order)."""
+    i = np.flatnonzero(ok)
+    if i.size < 8:
+        return 0.0
+    bearing = np.arctan2(d[i, 1], d[i, 0])
+    step = np.angle(np.exp(1j * np.diff(bearing))) / np.diff(i)
+    med = float(np.median(step))
+    if not 0.0 < abs(med) < 0.05 or np.mean(np.abs(step - med) < 0.1 * abs(med)) < 0.9:
+        return 0.0
+    return abs(med)
 
 
 class _Grid:

@@ -95,3 +95,29 @@ def test_empty_and_bad_cell():
     assert len(smap.filter(LaserDetections.empty(with_segments=True), np.zeros((0, 2)))) == 0
     with pytest.raises(LaserDetectorError):
         StaticMap.build([], cell=0.0)
+
+
+@pytest.mark.parametrize(("step_deg", "wall"), [(0.25, 9.0), (0.5, 4.0), (1.0, 2.5)])
+def test_free_space_thinning_marks_the_cells_every_beam_marks(step_deg, wall):
+    """Sampling only every m-th beam near the sensor (beams closer than a cell) marks the same free cells
+    as sampling every beam: scans in beam order (NaN beams in place) against the same scan shuffled."""
+    from studio.detect.laser.static_map import _ray_samples
+
+    pts, valid = cast(
+        circles=[(1.5, 0.4, 0.06), (3.0, -0.5, 0.15)],
+        walls=[(wall, -9.0, wall, 9.0), (-wall, -9.0, -wall, 9.0), (-9.0, wall, 9.0, wall)],
+        step_deg=step_deg,
+    )
+    origin = np.array([0.013, -0.021])  # off the cell corners
+    pts = np.where(valid[:, None], pts, np.nan) + origin
+
+    def cells(p):
+        s = _ray_samples(p, origin, step=0.05, margin=0.15, max_range=10.0)
+        return s.shape[0], set(map(tuple, np.floor(s / 0.05).astype(int)))
+
+    n_thin, thin = cells(pts)
+    n_all, every = cells(pts[np.random.default_rng(0).permutation(len(pts))])  # no beam order: no thinning
+    assert len(every - thin) <= 0.005 * len(every)
+    assert thin <= every
+    if step_deg < 1.0:
+        assert n_thin < 0.85 * n_all  # the point of it
