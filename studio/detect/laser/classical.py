@@ -134,6 +134,67 @@ def _along_beam(xy: FloatArray, origin: ArrayLike) -> FloatArray:
     return np.divide(d, n, out=np.zeros_like(d), where=n > 0)
 
 
+_EXACT_PAIRING_MAX = 10  # legs in one group of pairable legs searched exhaustively
+
+
+def _pairing(a: NDArray[np.int64], b: NDArray[np.int64], score: FloatArray, dist: FloatArray) -> list[int]:
+    """Which candidate pairs ``(a[k], b[k])`` of legs to form (indices ``k``), no leg in two pairs.
+
+    Each group of legs linked by candidate pairs is explained with as many pairs as possible — every
+    person has two legs, so two people standing side by side are four legs and two pairs, not one pair
+    of their inner legs with two single legs beside it — then with the highest total pair score, then
+    the closest pairs (``Σ score − Σ dist``, metres). Groups larger than :data:`_EXACT_PAIRING_MAX` legs
+    (clutter) are paired greedily by score.
+    """
+    if a.size == 0:
+        return []
+    legs = np.unique(np.concatenate([a, b]))
+    group = {int(v): int(v) for v in legs}
+
+    def root(v: int) -> int:
+        while group[v] != v:
+            group[v] = group[group[v]]
+            v = group[v]
+        return v
+
+    for i, j in zip(a.tolist(), b.tolist(), strict=True):
+        group[root(i)] = root(j)
+    members: dict[int, list[int]] = {}
+    for k in range(a.size):
+        members.setdefault(root(int(a[k])), []).append(k)
+    chosen: list[int] = []
+    for ks in members.values():
+        n_legs = len({int(a[k]) for k in ks} | {int(b[k]) for k in ks})
+        if n_legs > _EXACT_PAIRING_MAX:
+            used: set[int] = set()
+            for k in sorted(ks, key=lambda k: -score[k]):
+                if a[k] not in used and b[k] not in used:
+                    used.update((int(a[k]), int(b[k])))
+                    chosen.append(k)
+            continue
+        chosen.extend(_best_matching(ks, a, b, score - dist))
+    return sorted(chosen, key=lambda k: -score[k])
+
+
+def _best_matching(ks: list[int], a: NDArray[np.int64], b: NDArray[np.int64], value: FloatArray) -> list[int]:
+    """The matching among pairs ``ks`` with the most pairs, then the highest total ``value`` (exhaustive)."""
+    best: tuple[int, float, list[int]] = (0, 0.0, [])
+
+    def search(rest: list[int], used: frozenset[int], picked: list[int], total: float) -> None:
+        nonlocal best
+        if (len(picked), total) > best[:2]:
+            best = (len(picked), total, list(picked))
+        for n, k in enumerate(rest):
+            if a[k] in used or b[k] in used:
+                continue
+            picked.append(k)
+            search(rest[n + 1 :], used | {int(a[k]), int(b[k])}, picked, total + float(value[k]))
+            picked.pop()
+
+    search(ks, frozenset(), [], 0.0)
+    return best[2]
+
+
 @dataclass(frozen=True)
 class ClassicalLaserDetector:
     """Hand-built leg detector (see the module docstring). Implements ``LaserDetector``.
@@ -204,7 +265,7 @@ class ClassicalLaserDetector:
         return LaserDetections(xy, p, kind, np.maximum(width / 2.0, 0.05), tuple(segs))
 
     def people(self, legs: LaserDetections, *, origin: ArrayLike = (0.0, 0.0)) -> LaserDetections:
-        """People from leg candidates: greedy leg pairing, then unpaired legs and blobs.
+        """People from leg candidates: leg pairing (:func:`_pairing`), then unpaired legs and blobs.
 
         Args:
             legs: leg candidates as :meth:`legs` returns them (``segments`` optional).
@@ -230,13 +291,11 @@ class ClassicalLaserDetector:
             d = np.hypot(*(legs.xy[li, None, :] - legs.xy[None, li, :]).transpose(2, 0, 1))
             a, b = np.triu_indices(li.size, 1)
             ok = (d[a, b] >= self.pair_min) & (d[a, b] <= self.pair_max)
-            a, b = li[a[ok]], li[b[ok]]
+            a, b, dist = li[a[ok]], li[b[ok]], d[a[ok], b[ok]]
             pa, pb = legs.scores[a], legs.scores[b]
             pair_score = 1.0 - (1.0 - pa) * (1.0 - pb)
-            for k in np.argsort(-pair_score, kind="stable"):
+            for k in _pairing(a, b, pair_score, dist):
                 i, j = a[k], b[k]
-                if used[i] or used[j]:
-                    continue
                 used[i] = used[j] = True
                 c = (legs.xy[i] + legs.xy[j]) / 2.0
                 xy.append(c)

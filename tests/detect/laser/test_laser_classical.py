@@ -37,6 +37,21 @@ def _legs(xy, scores, kinds=None, width=0.12):
             None,
             [(KIND_PAIR, 2.0, 0.125), (KIND_LEG, 2.0, 0.7)],
         ),
+        # two people side by side (legs 0.2 m apart, 0.56 m between them): two pairs, even when their inner
+        # legs look more leg-like — greedy pairing by score made one person in the middle and two halves
+        (
+            [[4.0, -0.38], [4.0, -0.18], [4.0, 0.18], [4.0, 0.38]],
+            [0.6, 0.95, 0.95, 0.6],
+            None,
+            [(KIND_PAIR, 4.0, -0.28), (KIND_PAIR, 4.0, 0.28)],
+        ),
+        # with as many pairs either way, the higher total score and then the closer legs win
+        (
+            [[2.0, 0.0], [2.0, 0.25], [2.0, 0.55]],
+            [0.9, 0.9, 0.9],
+            None,
+            [(KIND_PAIR, 2.0, 0.125), (KIND_LEG, 2.0, 0.55)],
+        ),
         # a leg below the leg threshold is dropped
         ([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.1], None, [(KIND_LEG, 2.0, 0.15)]),
         # a blob is a person on its own and is never paired
@@ -59,6 +74,14 @@ def test_pairing_table(xy, scores, kinds, expected):
     )
     assert got == sorted((k, round(x, 3), round(y, 3)) for k, x, y in expected)
     assert np.all((people.scores >= 0) & (people.scores <= 1))
+
+
+def test_pairing_of_a_large_clutter_group_stays_greedy_and_disjoint():
+    rng = np.random.default_rng(3)
+    xy = np.stack([np.linspace(1.0, 4.0, 14), 0.3 * np.sin(np.arange(14))], 1)  # 14 legs in one chain
+    people = ClassicalLaserDetector(hidden_leg_offset=0.0).people(_legs(xy, rng.uniform(0.4, 0.9, 14)))
+    used = np.concatenate(list(people.segments))  # every leg in one person exactly
+    assert sorted(used.tolist()) == list(range(14))
 
 
 def test_single_leg_person_lies_behind_the_leg_along_the_beam():
