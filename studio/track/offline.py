@@ -4,7 +4,8 @@
    which track in which frame), including the hits a track had while still tentative.
 2. Tracks that were never confirmed are dropped; the others are cut where they went unobserved for longer
    than ``split_gap_s`` (a coasting track's wide gate may have caught clutter), pieces with too few hits are
-   dropped, and the resulting tracklets are filtered and RTS-smoothed on their own and then **stitched**
+   dropped; where two tracklets came close and their clothing colours say they came out of the encounter
+   the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered and RTS-smoothed on their own and then **stitched**
    across gaps (:mod:`studio.track.stitch`: motion + appearance, solved globally); a continuation takes the
    id of the tracklet it continues.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
@@ -26,6 +27,7 @@ from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
+from studio.track.swaps import SwapConfig, repair_swaps
 from studio.track.ukf import UkfTracker, UkfTrackerConfig
 
 __all__ = ["OfflineConfig", "track_offline"]
@@ -41,6 +43,8 @@ class OfflineConfig:
         tracker: options of the online pass (``report_tentative`` is forced on). Its ``max_coast_s`` can be
             short: stitching bridges longer gaps with more information than the online tracker has.
         stitch: stitching options, or None to skip stitching.
+        swaps: options of the identity-swap repair between tracklets that came close
+            (:mod:`studio.track.swaps`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
         interpolate_max_gap_s: gaps in a track up to this long (between the observations around them) get
             interpolated positions; longer gaps stay empty, seconds.
@@ -56,6 +60,7 @@ class OfflineConfig:
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
     stitch: StitchConfig | None = field(default_factory=StitchConfig)
+    swaps: SwapConfig | None = field(default_factory=SwapConfig)
     smooth: bool = True
     interpolate_max_gap_s: float = 1.0
     split_gap_s: float = 0.5
@@ -207,6 +212,8 @@ def track_offline(
     cfg = config or OfflineConfig()
     obs = list(observations)
     tracklets = _online_pass(obs, cfg)
+    if cfg.swaps is not None:
+        tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
     cache: _Cache = {}
     if cfg.stitch is not None and len(tracklets) > 1:
         summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
