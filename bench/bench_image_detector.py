@@ -43,6 +43,7 @@ from studio.geometry import pano_box_iou  # noqa: E402
 
 W, H = 1920, 960
 MOVENET_SWEEPS = {
+    "5×90° 256×320": SweepParams(count=5, fov_deg=90, width=256, height=320),
     "6×90° 256×320": SweepParams(count=6, fov_deg=90, width=256, height=320),
     "6×90° 256×384": SweepParams(count=6, fov_deg=90, width=256, height=384),
     "8×75° 256×384": SweepParams(count=8, fov_deg=75, width=256, height=384),

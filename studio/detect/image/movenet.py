@@ -86,7 +86,7 @@ class MoveNetDetector(ViewSweepDetector):
     """MoveNet MultiPose Lightning over a ring of perspective views (the default image detector).
 
     Args:
-        sweep: the views (default: 6 views of 90° × 102°, 256 × 320 px, on the horizon; see
+        sweep: the views (default: 5 views of 90° × 102°, 256 × 320 px, on the horizon; see
             ``bench/bench_image_detector.py``). Sizes must be multiples of 32.
         merge: how duplicates across views are merged.
         score_threshold: minimum person score.

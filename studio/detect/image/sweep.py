@@ -58,7 +58,7 @@ class SweepParams:
         pitch_deg: elevation of the optical axes, degrees (negative looks down, towards the feet).
     """
 
-    count: int = 6
+    count: int = 5
     fov_deg: float = 90.0
     width: int = 256
     height: int = 320

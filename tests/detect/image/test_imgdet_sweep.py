@@ -55,10 +55,10 @@ def test_views_to_pano_keypoints_wrapped():
 # (people as (azimuth rad, distance m)) — each must come out as exactly one detection
 CASES = {
     "view centre": [(0.0, 3.0)],
-    "view border (30° between 6 views)": [(math.radians(30), 2.0)],
+    "view border (36° between 5 views)": [(math.radians(36), 2.0)],
     "seam": [(math.pi, 2.5)],
     "seam, close": [(math.radians(179), 0.9)],
-    "border, close (partial in both views)": [(math.radians(30), 0.7)],
+    "border, close (partial in both views)": [(math.radians(36), 0.7)],
     "two side by side": [(math.radians(-40), 2.0), (math.radians(-52), 2.0)],
     "ring of six": [(math.radians(a), 1.5 + (a % 7) / 3) for a in range(-170, 180, 60)],
 }
