@@ -5,9 +5,9 @@
 2. Tracks that were never confirmed are dropped; the others are cut where they went unobserved for longer
    than ``split_gap_s`` (a coasting track's wide gate may have caught clutter), pieces with too few hits are
    dropped; where two tracklets came close and their clothing colours say they came out of the encounter
-   the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered and RTS-smoothed on their own and then **stitched**
-   across gaps (:mod:`studio.track.stitch`: motion + appearance, solved globally); a continuation takes the
-   id of the tracklet it continues.
+   the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered
+   and RTS-smoothed on their own and then **stitched** across gaps (:mod:`studio.track.stitch`: motion +
+   appearance, solved globally); a continuation takes the id of the tracklet it continues.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
 4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped

@@ -226,9 +226,13 @@ def _ray_samples(points: FloatArray, origin: FloatArray, *, step: float, margin:
     ``points`` are one scan's returns in beam order (NaN rows for invalid beams). Near the sensor,
     neighbouring beams are much closer together than ``step`` (a 0.25° scanner's beams are one 5 cm cell
     apart only at 11.5 m), so sampling every beam there marks the same cells many times over: at a
-    distance ``t`` only every ``m``-th beam is sampled, ``m`` the largest power of two with
-    ``m · t · dθ ≤ step`` (``dθ`` the beam spacing, estimated from the scan), which keeps samples at most a
-    cell apart across the beams too. Points not in beam order (no consistent spacing) sample every beam.
+    distance ``t`` only one beam of every ``m`` neighbours is sampled (the one whose return is farthest),
+    ``m`` the largest power of two with ``2 m · t · dθ ≤ step`` (``dθ`` the beam spacing, estimated from
+    the scan), which keeps samples at most half a cell apart across the beams. On the simulated recordings
+    the map's static detections are identical; on leg_tracker's real scans (bench/bench_laser_detector.py)
+    person recall with the default filter is unchanged (0.884) and 0.673 → 0.647 with the aggressive
+    preset; ray sampling takes ~0.8× the time for 60 % of the samples. Points not in beam order (no
+    consistent spacing) sample every beam.
     """
     d = points - origin
     r = np.hypot(d[:, 0], d[:, 1])
@@ -253,7 +257,16 @@ def _ray_samples(points: FloatArray, origin: FloatArray, *, step: float, margin:
         j_lo = 0 if lo <= 0.0 else int(np.floor(lo / step - 0.5)) + 1
         j_hi = k if not np.isfinite(hi) else np.minimum(k, int(np.floor(hi / step - 0.5)) + 1)
         count = np.maximum(j_hi - j_lo, 0)
-        count[idx % (2**level) != 0] = 0
+        if level:
+            # one beam per group of 2**level neighbours: the one that reaches farthest (a beam without a
+            # return must not silence its group's free space)
+            m = 2**level
+            padded = np.zeros(-(-idx.size // m) * m, dtype=np.int64)
+            padded[: idx.size] = k
+            rep = np.arange(0, padded.size, m) + np.argmax(padded.reshape(-1, m), axis=1)
+            keep = np.zeros(padded.size, dtype=bool)
+            keep[rep] = True
+            count[~keep[: idx.size]] = 0
         total = int(count.sum())
         if total == 0:
             continue

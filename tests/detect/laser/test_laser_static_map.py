@@ -109,6 +109,7 @@ def test_free_space_thinning_marks_the_cells_every_beam_marks(step_deg, wall):
         step_deg=step_deg,
     )
     origin = np.array([0.013, -0.021])  # off the cell corners
+    valid[np.random.default_rng(1).random(len(valid)) < 0.3] = False  # dropouts: no return on 30 % of beams
     pts = np.where(valid[:, None], pts, np.nan) + origin
 
     def cells(p):
