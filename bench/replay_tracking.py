@@ -3,6 +3,7 @@
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2
     .venv/bin/python bench/replay_tracking.py --scenario static --seeds 1 --switches
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 --image-period 0.3
+    .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs
 once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a
@@ -10,8 +11,10 @@ contract: delete it when the detectors change). Each call then runs the static-w
 offline tracking exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also
 lists every identity switch (frame, ground-truth id, range from the robot, distance to the nearest other
 person, the track ids before and after). ``--image-period`` emulates another image detector period from a
-pass one that ran the detector on every frame (stored separately). The recordings are those of
-``bench/run_table.py``.
+pass one that ran the detector on every frame (stored separately). ``--laser-again`` runs the current
+laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
+in the last digits): a laser detector change measured in a minute instead of a new pass one. The
+recordings are those of ``bench/run_table.py``.
 """
 
 from __future__ import annotations
@@ -58,6 +61,29 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
     return frames, cam
+
+
+def laser_again(frames: list[Any]) -> list[Any]:
+    """Pass one with the current classical laser detector run again on each frame's stored scans."""
+    from studio.detect.laser import get_laser_detector
+    from studio.detect.laser.base import merge_detections
+
+    detector = get_laser_detector("classical")
+    out = []
+    for f in frames:
+        parts, offsets, off = [], [], 0
+        for k in range(len(f.origins)):
+            sel = np.flatnonzero(f.origin_of_point == k)
+            pts = f.points[sel, :2].astype(np.float64)
+            valid = np.isfinite(pts[:, 0])
+            parts.append(detector.detect(np.nan_to_num(pts), valid=valid, origin=f.origins[k]))
+            offsets.append(off)
+            off += len(sel)
+        laser = merge_detections(parts, offsets=offsets)
+        segs = laser.segments if laser.segments is not None else [np.zeros(0, np.int64)] * len(laser.xy)
+        z = np.array([float(np.nanmedian(f.points[s, 2])) if len(s) else np.nan for s in segs])
+        out.append(replace(f, laser=laser, laser_z=np.nan_to_num(z, nan=float(np.nanmean(f.points[:, 2])))))
+    return out
 
 
 def thin_images(frames: list[Any], period_s: float) -> list[Any]:
@@ -107,6 +133,9 @@ def main() -> None:
         default=None,
         help="emulate this image detector period, s (pass one then runs the detector on every frame once)",
     )
+    ap.add_argument(
+        "--laser-again", action="store_true", help="run the laser detector again on the stored scans"
+    )
     args = ap.parse_args()
     options = LabelOptions()
     for seed in args.seeds:
@@ -117,6 +146,8 @@ def main() -> None:
             frames, cam = perception(rec, replace(options, image_period_s=0.0))
             frames = thin_images(frames, args.image_period)
             options = replace(options, image_period_s=args.image_period)
+        if args.laser_again:
+            frames = laser_again(frames)
         gt = read_labels(rec / "ground_truth.jsonl")
         t = time.perf_counter()
         fused = fuse_all(frames, cam, options)
