@@ -8,14 +8,14 @@ offline both sides of the encounter are known.
 For two tracklets that overlap in time, every *encounter* (a run of frames in which both are observed
 less than ``close_m`` apart) is judged by the colours of each before and after it (the ``views`` nearest
 described observations on each side, medians as in stitching). With ``d(X, Y)`` the colour difference
-(:func:`studio.track.appearance.appearance_distance`), the tails are exchanged at the frame where the two
-were closest when
+(:func:`studio.track.appearance.appearance_distance`), the tails are exchanged when
 
     d(A_before, B_after) + d(B_before, A_after) + margin  <  d(A_before, A_after) + d(B_before, B_after)
 
 and both crossed pairs match (each at most ``max_appearance``): the colours say the tracks came out of
-the encounter the other way round. Encounters without enough described observations on all four sides
-are left as they are.
+the encounter the other way round. The cut goes where the colours seen inside the encounter change from
+matching one person to matching the other (at the closest approach when none is described there).
+Encounters without enough described observations on all four sides are left as they are.
 """
 
 from __future__ import annotations

@@ -142,9 +142,9 @@ def _pairing(a: NDArray[np.int64], b: NDArray[np.int64], score: FloatArray, dist
 
     Each group of legs linked by candidate pairs is explained with as many pairs as possible — every
     person has two legs, so two people standing side by side are four legs and two pairs, not one pair
-    of their inner legs with two single legs beside it — then with the highest total pair score, then
-    the closest pairs (``Σ score − Σ dist``, metres). Groups larger than :data:`_EXACT_PAIRING_MAX` legs
-    (clutter) are paired greedily by score.
+    of their inner legs with two single legs beside it — and among those with the highest
+    ``Σ (pair score − leg distance in metres)``: likely legs, close together. Groups larger than
+    :data:`_EXACT_PAIRING_MAX` legs (clutter) are paired greedily by score.
     """
     if a.size == 0:
         return []
