@@ -97,28 +97,38 @@ def test_empty_and_bad_cell():
         StaticMap.build([], cell=0.0)
 
 
-@pytest.mark.parametrize(("step_deg", "wall"), [(0.25, 9.0), (0.5, 4.0), (1.0, 2.5)])
-def test_free_space_thinning_marks_the_cells_every_beam_marks(step_deg, wall):
-    """Sampling only every m-th beam near the sensor (beams closer than a cell) marks the same free cells
-    as sampling every beam: scans in beam order (NaN beams in place) against the same scan shuffled."""
-    from studio.detect.laser.static_map import _ray_samples
-
-    pts, valid = cast(
-        circles=[(1.5, 0.4, 0.06), (3.0, -0.5, 0.15)],
-        walls=[(wall, -9.0, wall, 9.0), (-wall, -9.0, -wall, 9.0), (-9.0, wall, 9.0, wall)],
-        step_deg=step_deg,
-    )
+def _fan(step_deg=0.25, gap=(10.0, 20.0)):
+    """A 0.25° scan from (0.013, -0.021) of a wall at x = 3 (±40°), no return in the ``gap`` sector."""
     origin = np.array([0.013, -0.021])  # off the cell corners
-    valid[np.random.default_rng(1).random(len(valid)) < 0.3] = False  # dropouts: no return on 30 % of beams
-    pts = np.where(valid[:, None], pts, np.nan) + origin
+    a = np.radians(np.arange(-40.0, 40.0 + 1e-9, step_deg))
+    pts = origin + np.c_[np.full(a.size, 3.0 - origin[0]), (3.0 - origin[0]) * np.tan(a)]
+    pts[(np.degrees(a) > gap[0]) & (np.degrees(a) < gap[1])] = np.nan
+    return pts, origin
 
-    def cells(p):
-        s = _ray_samples(p, origin, step=0.05, margin=0.15, max_range=10.0)
-        return s.shape[0], set(map(tuple, np.floor(s / 0.05).astype(int)))
 
-    n_thin, thin = cells(pts)
-    n_all, every = cells(pts[np.random.default_rng(0).permutation(len(pts))])  # no beam order: no thinning
-    assert len(every - thin) <= 0.005 * len(every)
-    assert thin <= every
-    if step_deg < 1.0:
-        assert n_thin < 0.85 * n_all  # the point of it
+def test_one_scan_marks_free_space_along_the_beams():
+    pts, origin = _fan()
+    smap = StaticMap.build([(pts, origin)], cell=0.05, free_margin=0.15)
+    h, f = smap._lookup(np.array([[1.5, 0.0], [2.7, 0.0], [2.9, 0.0], [3.0, 0.0], [3.6, 0.0], [2.0, 0.55]]))
+    # in the fan, before the margin: free; the margin and the wall: not; behind the wall: unseen
+    assert f.tolist() == [1, 1, 0, 0, 0, 0] and h.tolist() == [0, 0, 0, 1, 0, 0]
+    # 2.0, 0.55 lies in the sector without returns (15°): nothing is known there
+    assert smap.observations(np.array([[2.0, 0.55]]))[0] == 0
+    # the whole fan up to the margin is free: every cell between the first and the last beam at 1–2.5 m
+    xs = np.arange(1.0, 2.5, 0.05) + 0.025
+    ys = np.arange(-0.5, 0.5, 0.05) + 0.025
+    grid = np.array([(x, y) for x in xs for y in ys if not (0.15 < y / x < 0.39)])  # off the gap
+    assert np.all(smap.observations(grid) == 1)
+
+
+def test_scan_order_and_dropouts():
+    """Beams may come in any order; a beam without a return marks nothing."""
+    pts, origin = _fan(gap=(0.0, 0.0))
+    drop = np.random.default_rng(1).random(len(pts)) < 0.3
+    pts[drop] = np.nan
+    a = StaticMap.build([(pts, origin)])
+    b = StaticMap.build([(pts[np.random.default_rng(0).permutation(len(pts))], origin)])
+    assert np.array_equal(a.hits, b.hits) and np.array_equal(a.free, b.free)
+    assert np.array_equal(a.origin, b.origin)
+    # 30 % of 0.25° beams missing still leave the fan free at 2 m (neighbours 1 cm apart)
+    assert a.observations(np.array([[2.0, 0.0], [2.0, 0.5], [2.0, -0.5]])).tolist() == [1, 1, 1]
