@@ -111,7 +111,8 @@ def test_one_scan_marks_free_space_along_the_beams():
     smap = StaticMap.build([(pts, origin)], cell=0.05, free_margin=0.15)
     h, f = smap._lookup(np.array([[1.5, 0.0], [2.7, 0.0], [2.9, 0.0], [3.0, 0.0], [3.6, 0.0], [2.0, 0.55]]))
     # in the fan, before the margin: free; the margin and the wall: not; behind the wall: unseen
-    assert f.tolist() == [1, 1, 0, 0, 0, 0] and h.tolist() == [0, 0, 0, 1, 0, 0]
+    assert f.tolist() == [1, 1, 0, 0, 0, 0]
+    assert h.tolist() == [0, 0, 0, 1, 0, 0]
     # 2.0, 0.55 lies in the sector without returns (15°): nothing is known there
     assert smap.observations(np.array([[2.0, 0.55]]))[0] == 0
     # the whole fan up to the margin is free: every cell between the first and the last beam at 1–2.5 m
@@ -128,7 +129,8 @@ def test_scan_order_and_dropouts():
     pts[drop] = np.nan
     a = StaticMap.build([(pts, origin)])
     b = StaticMap.build([(pts[np.random.default_rng(0).permutation(len(pts))], origin)])
-    assert np.array_equal(a.hits, b.hits) and np.array_equal(a.free, b.free)
+    assert np.array_equal(a.hits, b.hits)
+    assert np.array_equal(a.free, b.free)
     assert np.array_equal(a.origin, b.origin)
     # 30 % of 0.25° beams missing still leave the fan free at 2 m (neighbours 1 cm apart)
     assert a.observations(np.array([[2.0, 0.0], [2.0, 0.5], [2.0, -0.5]])).tolist() == [1, 1, 1]
