@@ -4,7 +4,9 @@
 
 1. Speed: onnxruntime with ``--threads`` intra-op threads (the product target is a 2-core machine; pin the
    process with ``taskset -c 0,1`` for clean numbers) on a 1920 × 960 panorama: ms per network pass per
-   view size, and ms per panorama (render + all views + merge) for each sweep configuration.
+   view size, against ``--threads`` single-threaded passes side by side (how the detectors spend a thread
+   budget, see ``studio.detect.image.sweep.thread_plan``), and ms per panorama (render + all views +
+   merge) for each sweep configuration.
 2. Recall (synthetic, no real panoramas here): a real photo of a person (matplotlib's sample
    ``grace_hopper.jpg``, head and torso, pasted as a 0.9 m tall billboard whose top is 1.7 m above the
    floor, camera 1.1 m high) at 1–6 m and at azimuths that put it at view centres, view borders and the
@@ -25,6 +27,7 @@ import math
 import os
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -72,10 +75,18 @@ def bench_speed(threads: int, reps: int) -> None:
         f"\n== speed (onnxruntime intra-op threads={threads}, median of {reps}; load average {load:.1f}) =="
     )
     s = load_session(bundled_model("movenet-multipose-lightning.onnx"), threads=threads)
+    one = load_session(bundled_model("movenet-multipose-lightning.onnx"), threads=1)
     rng = np.random.default_rng(0)
-    for w, h in [(256, 256), (256, 320), (256, 384), (320, 416)]:
-        x = rng.integers(0, 256, (1, h, w, 3)).astype(np.int32)
-        print(f"movenet pass {w}×{h}: {_time(lambda x=x: s.run(None, {'input': x}), reps)}")
+    with ThreadPoolExecutor(threads) as pool:
+        for w, h in [(256, 256), (256, 320), (256, 384), (320, 416), (480, 480)]:
+            x = rng.integers(0, 256, (1, h, w, 3)).astype(np.int32)
+            print(f"movenet pass {w}×{h}: {_time(lambda x=x: s.run(None, {'input': x}), reps)}")
+            # what the detectors do (studio.detect.image.sweep.thread_plan): single-threaded passes on
+            # `threads` views at once; per call `threads` views, so divide by it for one view
+            side = _time(
+                lambda x=x: list(pool.map(lambda _: one.run(None, {"input": x}), range(threads))), reps
+            )
+            print(f"  {threads} single-threaded passes side by side: {side}")
     c = load_session(bundled_model("centernet-mobilenetv3-384.onnx"), threads=threads)
     xc = rng.uniform(0, 255, (1, 384, 384, 3)).astype(np.float32)
     print(f"centernet pass 384×384: {_time(lambda: c.run(None, {'tower_0/images:0': xc}), reps)}")

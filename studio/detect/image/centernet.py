@@ -17,7 +17,14 @@ from numpy.typing import NDArray
 
 from studio.detect.image.base import ViewDetections
 from studio.detect.image.errors import ImageDetectorError
-from studio.detect.image.sweep import MergeParams, SweepParams, ViewSweepDetector, bundled_model, load_session
+from studio.detect.image.sweep import (
+    MergeParams,
+    SweepParams,
+    ViewSweepDetector,
+    bundled_model,
+    load_session,
+    thread_plan,
+)
 from studio.detect.image.yolo import nms
 from studio.geometry import ViewRenderer
 
@@ -66,7 +73,7 @@ class CenterNetDetector(ViewSweepDetector):
         merge: how duplicates across views are merged.
         score_threshold: minimum person score.
         model_path: another CenterNet ONNX file of the same interface (its fixed input size is used).
-        threads: onnxruntime intra-op threads.
+        threads: CPU threads for the network (default: every core; see :func:`thread_plan`).
         renderer: a shared view renderer.
     """
 
@@ -85,7 +92,8 @@ class CenterNetDetector(ViewSweepDetector):
         renderer: ViewRenderer | None = None,
     ) -> None:
         self.model_path = Path(model_path) if model_path is not None else bundled_model(MODEL_FILE)
-        self.session = load_session(self.model_path, threads=threads)
+        workers, intra = thread_plan(threads, count)
+        self.session = load_session(self.model_path, threads=intra)
         inp = self.session.get_inputs()[0]
         self._input = inp.name
         shape = list(inp.shape)
@@ -95,7 +103,7 @@ class CenterNetDetector(ViewSweepDetector):
         names = [o.name for o in self.session.get_outputs()]
         self._output = "tower_0/detections" if "tower_0/detections" in names else names[-1]
         sweep = SweepParams(count=count, fov_deg=fov_deg, width=w, height=h, pitch_deg=pitch_deg)
-        super().__init__(sweep=sweep, merge=merge, renderer=renderer)
+        super().__init__(sweep=sweep, merge=merge, renderer=renderer, workers=workers)
         self.score_threshold = float(score_threshold)
 
     def infer(self, x: NDArray[np.float32]) -> NDArray[np.float32]:

@@ -72,7 +72,7 @@ class CombinedDetector:
         centernet_count: number of CenterNet views (384 × 384 px, 90°).
         min_iou: least IoU that pairs a box and a pose.
         movenet_alone_score: a MoveNet person CenterNet missed is kept from this score up.
-        threads: onnxruntime intra-op threads of each network.
+        threads: CPU threads of each network (default: every core).
     """
 
     name = "combined"

@@ -16,7 +16,14 @@ from numpy.typing import NDArray
 
 from studio.detect.image.base import ViewDetections
 from studio.detect.image.errors import ImageDetectorError
-from studio.detect.image.sweep import MergeParams, SweepParams, ViewSweepDetector, bundled_model, load_session
+from studio.detect.image.sweep import (
+    MergeParams,
+    SweepParams,
+    ViewSweepDetector,
+    bundled_model,
+    load_session,
+    thread_plan,
+)
 from studio.geometry import ViewRenderer
 
 __all__ = ["MODEL_FILE", "MoveNetDetector", "movenet_postprocess", "movenet_preprocess"]
@@ -92,7 +99,7 @@ class MoveNetDetector(ViewSweepDetector):
         score_threshold: minimum person score.
         keypoint_score: keypoint confidence that extends a box.
         model_path: another MoveNet MultiPose ONNX file (default: the bundled one).
-        threads: onnxruntime intra-op threads (default: onnxruntime's choice).
+        threads: CPU threads for the network (default: every core; see :func:`thread_plan`).
         renderer: a shared view renderer.
     """
 
@@ -114,11 +121,12 @@ class MoveNetDetector(ViewSweepDetector):
             raise ImageDetectorError(
                 f"MoveNet view sizes must be multiples of 32, got {sweep.width}×{sweep.height}"
             )
-        super().__init__(sweep=sweep, merge=merge, renderer=renderer)
+        workers, intra = thread_plan(threads, sweep.count)
+        super().__init__(sweep=sweep, merge=merge, renderer=renderer, workers=workers)
         self.score_threshold = float(score_threshold)
         self.keypoint_score = float(keypoint_score)
         self.model_path = Path(model_path) if model_path is not None else bundled_model(MODEL_FILE)
-        self.session = load_session(self.model_path, threads=threads)
+        self.session = load_session(self.model_path, threads=intra)
         self._input = self.session.get_inputs()[0].name
 
     def infer(self, x: NDArray[np.int32]) -> NDArray[np.float32]:

@@ -20,6 +20,8 @@ are merged on the sphere:
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -40,6 +42,7 @@ __all__ = [
     "check_pano",
     "load_session",
     "merge_on_sphere",
+    "thread_plan",
     "views_to_pano",
 ]
 
@@ -92,6 +95,28 @@ def bundled_model(file_name: str) -> Path:
     if not path.is_file():
         raise ImageDetectorError(f"bundled model {file_name} is missing from {path.parent} (broken install?)")
     return path
+
+
+def thread_plan(threads: int | None, views: int) -> tuple[int, int]:
+    """``(views run at once, onnxruntime intra-op threads per run)`` for a budget of ``threads`` CPU threads.
+
+    A small network on one view uses two or more cores poorly (MoveNet at 256 × 320 px on 2 cores: 37 ms
+    per view with 2 intra-op threads, 32 ms per view with two single-threaded views at once; see
+    ``bench/bench_image_detector.py``), so the budget goes to running views side by side first; what is
+    left over (more cores than views) goes to each run.
+
+    Args:
+        threads: CPU threads for the network (default: every core this process may run on).
+        views: views per panorama.
+    """
+    if threads is None:
+        total = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    else:
+        total = int(threads)
+    if total < 1:
+        raise ImageDetectorError(f"threads must be at least 1, got {threads}")
+    workers = max(1, min(int(views), total))
+    return workers, max(1, total // workers)
 
 
 def load_session(path: str | Path, *, threads: int | None = None) -> Any:
@@ -282,17 +307,26 @@ class ViewSweepDetector:
         sweep: the ring of views.
         merge: merge thresholds.
         renderer: a shared :class:`ViewRenderer` (its LUT cache); a new one when None.
+        workers: views inferred at once (threads; onnxruntime releases the GIL). ``detect_view`` must be
+            safe to call from several threads (onnxruntime sessions are).
     """
 
     name = "sweep"
 
     def __init__(
-        self, *, sweep: SweepParams, merge: MergeParams | None = None, renderer: ViewRenderer | None = None
+        self,
+        *,
+        sweep: SweepParams,
+        merge: MergeParams | None = None,
+        renderer: ViewRenderer | None = None,
+        workers: int = 1,
     ) -> None:
         self.sweep = sweep
         self.merge = merge or MergeParams()
         self.views = sweep.views()
         self.renderer = renderer or ViewRenderer()
+        self.workers = max(1, int(workers))
+        self._pool: ThreadPoolExecutor | None = None
 
     def detect_view(self, image: NDArray[np.uint8]) -> ViewDetections:
         """People in one BGR uint8 view ``(h, w, 3)`` (pre-process → infer → post-process)."""
@@ -303,9 +337,17 @@ class ViewSweepDetector:
         check_pano(pano)
         return self.renderer.render_many(pano, self.views)
 
+    def detect_views(self, images: list[NDArray[np.uint8]]) -> list[ViewDetections]:
+        """``detect_view`` of every image, ``workers`` at a time, in order."""
+        if self.workers == 1 or len(images) < 2:
+            return [self.detect_view(img) for img in images]
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix=f"studio-{self.name}")
+        return list(self._pool.map(self.detect_view, images))
+
     def detect(self, pano: NDArray[np.uint8]) -> ImageDetections:
         """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``."""
         w, h = check_pano(pano)
-        per_view = [self.detect_view(img) for img in self.render_views(pano)]
+        per_view = self.detect_views(self.render_views(pano))
         b, s, k, m, vi = views_to_pano(self.views, per_view, w, h)
         return merge_on_sphere(b, s, k, m, vi, w, h, params=self.merge)

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from studio.detect.image.base import ViewDetections
 from studio.detect.image.errors import ImageDetectorError
-from studio.detect.image.sweep import MergeParams, SweepParams, ViewSweepDetector, load_session
+from studio.detect.image.sweep import MergeParams, SweepParams, ViewSweepDetector, load_session, thread_plan
 from studio.geometry import ViewRenderer
 
 __all__ = ["Letterbox", "YoloDetector", "letterbox", "nms", "parse_yolo_output", "yolo_postprocess"]
@@ -162,7 +162,7 @@ class YoloDetector(ViewSweepDetector):
         person_class: class index of ``person``.
         layout: force ``"v5"`` or ``"v8"``.
         merge: how duplicates across views are merged.
-        threads: onnxruntime intra-op threads.
+        threads: CPU threads for the network (default: every core; see :func:`thread_plan`).
         renderer: a shared view renderer.
     """
 
@@ -185,7 +185,8 @@ class YoloDetector(ViewSweepDetector):
         renderer: ViewRenderer | None = None,
     ) -> None:
         self.model_path = Path(model_path)
-        self.session = load_session(self.model_path, threads=threads)
+        workers, intra = thread_plan(threads, count)
+        self.session = load_session(self.model_path, threads=intra)
         inp = self.session.get_inputs()[0]
         shape = list(inp.shape)
         if len(shape) != 4 or shape[1] not in (3, "3"):
@@ -199,7 +200,7 @@ class YoloDetector(ViewSweepDetector):
         self._output = three_d[0] if three_d else outs[0].name
         vw, vh = view_size or self.input_size or (640, 640)
         sweep = SweepParams(count=count, fov_deg=fov_deg, width=int(vw), height=int(vh), pitch_deg=pitch_deg)
-        super().__init__(sweep=sweep, merge=merge, renderer=renderer)
+        super().__init__(sweep=sweep, merge=merge, renderer=renderer, workers=workers)
         self.score_threshold = float(score_threshold)
         self.iou_threshold = float(iou_threshold)
         self.person_class = int(person_class)

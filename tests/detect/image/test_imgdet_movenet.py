@@ -174,3 +174,37 @@ def test_combined_end_to_end_blank():
     assert len(d) == 0
     assert d.keypoints is not None
     assert d.keypoints.shape == (0, 17, 3)
+
+
+def test_thread_plan():
+    from studio.detect.image.sweep import thread_plan
+
+    assert thread_plan(2, 5) == (2, 1)  # two single-threaded views at a time
+    assert thread_plan(1, 5) == (1, 1)
+    assert thread_plan(16, 5) == (5, 3)  # more cores than views: the rest goes into each pass
+    assert thread_plan(4, 1) == (1, 4)
+    workers, intra = thread_plan(None, 5)
+    assert 1 <= workers <= 5
+    assert intra >= 1
+    with pytest.raises(ImageDetectorError, match="at least 1"):
+        thread_plan(0, 5)
+
+
+@pytest.mark.skipif(PHOTO is None, reason="matplotlib sample photo not installed")
+def test_movenet_views_side_by_side_match_one_at_a_time():
+    """Views inferred on two threads give the detections of views inferred one after the other."""
+    photo = cv2.imread(str(PHOTO))
+    pano = textured_pano(1280, 640)
+    for az in (0.3, 2.0, 4.4):
+        pano, _ = paste_billboard(pano, photo, az=az, dist=1.5, z_bottom=-0.3, height_m=0.9)
+    sweep = SweepParams(count=4, fov_deg=100, width=256, height=320)
+    one = get_image_detector("movenet", sweep=sweep, threads=1)
+    two = get_image_detector("movenet", sweep=sweep, threads=2)
+    assert (one.workers, two.workers) == (1, 2)
+    a, b = one.detect(pano), two.detect(pano)
+    assert len(a) >= 2
+    np.testing.assert_allclose(a.boxes, b.boxes, atol=1e-3)
+    np.testing.assert_allclose(a.keypoints, b.keypoints, atol=1e-3)
+    views = one.render_views(pano)
+    for x, y in zip(one.detect_views(views), two.detect_views(views), strict=True):
+        np.testing.assert_allclose(x.boxes, y.boxes, atol=1e-3)
