@@ -1,17 +1,19 @@
 """``studio label``: recording + rig → people's positions with identities in every frame.
 
-Two passes. The first streams the recording once (images decoded one at a time, memory flat in the number
-of images) and keeps per frame only what later stages need: image detections with an appearance descriptor
-per box, laser detections in the base frame and the frame's scan points. Between the passes, the scan points
-of the whole recording build the static-world map in the odom frame. The second pass fuses, tracks in the
+Two passes. The first streams the recording once and keeps per frame only what later stages need: image
+detections with an appearance descriptor per box, laser detections in the base frame and the frame's scan
+points. The image detector works on its own thread, on at most two frames at a time (memory stays flat in
+the number of images), while the main thread reads, decodes, runs the laser detector on the next frames and
+adds their scans to the static-world map in the odom frame. The second pass fuses, tracks in the
 odom frame (UKF + GNN, RTS smoothing, tracklet stitching) and returns labels.
 """
 
 from __future__ import annotations
 
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -152,13 +154,47 @@ def perceive(
 
         laser_detector = get_laser_detector(options.laser_detector or "classical")
 
+    from studio.detect.laser.static_map import StaticMapBuilder
     from studio.track.appearance import clothing_colours
 
-    t_img = t_las = t_io = 0.0
+    # the static-world map grows while the recording is read (this thread mostly waits for the images)
+    static_map = StaticMapBuilder() if options.static_filter else None
+
+    def detect_image(pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
+        assert image_detector is not None
+        t = time.perf_counter()
+        det = image_detector.detect(pano)
+        return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
+
+    t_img = t_las = t_io = t_wait = t_map = 0.0
     last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
+    # frames read but not yet handed on, with their image detection still running (or None)
+    pending: deque[tuple[Any, PerceptionFrame, Future[Any] | None]] = deque()
     report = SyncReport()
-    with open_recording(recording) as rec:
+
+    def hand_on(*, wait_for: int) -> None:
+        """Hand finished frames on in order; wait until at most ``wait_for`` detections are running."""
+        nonlocal t_img, t_wait
+        while pending:
+            frame, pf, job = pending[0]
+            if job is not None:
+                if not job.done() and sum(j is not None for _, _, j in pending) <= wait_for:
+                    return
+                t = time.perf_counter()
+                pf.image, pf.appearance, dt = job.result()
+                t_wait += time.perf_counter() - t
+                t_img += dt
+            pending.popleft()
+            frames.append(pf)
+            if on_frame is not None:
+                on_frame(frame, pf)
+            if progress is not None:
+                progress(len(frames), total)
+
+    # The image detector runs on its own thread (and its views on the detector's threads) while this one
+    # reads, decodes and runs the laser detector on the next frames: two detections in flight at most.
+    with open_recording(recording) as rec, ThreadPoolExecutor(2, thread_name_prefix="studio-image") as pool:
         rig = resolve_sensor_poses(rec, rig)
         total = count_frames(rec, rig)
         it: Iterator[Any] = iter(iter_frames(rec, rig, report=report))
@@ -166,18 +202,15 @@ def perceive(
         for frame in it:
             t1 = time.perf_counter()
             t_io += t1 - t0
-            image = appearance = None
+            job = None
             stamp = frame.stamp_ns
             if frame.panorama is not None:
                 stamp = frame.panorama.stamp_ns
             due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
             if use_camera and frame.panorama is not None and image_detector is not None and due:
                 last_image_ns = stamp
-                pano = frame.panorama.image
-                image = image_detector.detect(pano)
-                appearance = clothing_colours(pano, image.boxes, image.keypoints)
+                job = pool.submit(detect_image, frame.panorama.image)
             t2 = time.perf_counter()
-            t_img += t2 - t1
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = _laser_in_base(frame, laser_detector)
             else:
@@ -187,25 +220,25 @@ def perceive(
             t3 = time.perf_counter()
             t_las += t3 - t2
             pf = PerceptionFrame(
-                frame.index,
-                stamp,
-                frame.robot_pose,
-                image,
-                appearance,
-                laser,
-                laser_z,
-                points,
-                origins,
-                owner,
+                frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
-            frames.append(pf)
-            if on_frame is not None:
-                on_frame(frame, pf)
-            if progress is not None:
-                progress(len(frames), total)
+            if static_map is not None:
+                for scan in _odom_scans(pf):
+                    static_map.add(*scan)
+                t_map += time.perf_counter() - t3
+            pending.append((frame, pf, job))
+            hand_on(wait_for=2)
             t0 = time.perf_counter()
+        hand_on(wait_for=0)
     info = {
-        "timings_s": {"read_decode_sync": t_io, "image_detection": t_img, "laser_detection": t_las},
+        "timings_s": {
+            "read_decode_sync": t_io,
+            "image_detection": t_img,
+            "laser_detection": t_las,
+            "static_map": t_map,
+            "waiting_for_images": t_wait,
+        },
+        "static_map": static_map.finish() if static_map is not None and static_map.n_scans else None,
         "sync": report.summary(),
         "frames": len(frames),
         "use_camera": use_camera,
@@ -220,20 +253,25 @@ class _NoDetector:
         return LaserDetections.empty(with_segments=True)
 
 
-def _static_masks(frames: list[PerceptionFrame]) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
-    """Per frame: which laser detections and which scan points lie on never-moving structure."""
+def _odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
+    """The frame's scans in the odom frame: ``(points (M, 2), scanner position (2,))``, beams in order with
+    NaN for no return (what :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
+    for k in range(len(f.origins)):
+        sel = f.origin_of_point == k
+        yield f.robot_pose.apply(f.points[sel, :2].astype(np.float64)), f.robot_pose.apply(f.origins[k])
+
+
+def _static_masks(
+    frames: list[PerceptionFrame], static_map: Any | None = None
+) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
+    """Per frame: which laser detections and which scan points lie on never-moving structure.
+
+    ``static_map``: the map of the frames' scans when it was built already (by :func:`perceive`)."""
     from studio.detect.laser.static_map import StaticMap
 
-    def scans() -> Iterator[tuple[FloatArray, FloatArray]]:
-        for f in frames:
-            for k in range(len(f.origins)):
-                sel = f.origin_of_point == k  # in beam order, invalid beams NaN
-                yield (
-                    f.robot_pose.apply(f.points[sel, :2].astype(np.float64)),
-                    f.robot_pose.apply(f.origins[k]),
-                )
-
-    smap = StaticMap.build(scans())
+    smap = static_map
+    if smap is None:
+        smap = StaticMap.build(s for f in frames for s in _odom_scans(f))
     det_static, pt_static = [], []
     for f in frames:
         pts_odom = f.robot_pose.apply(f.points[:, :2].astype(np.float64))  # NaN rows stay NaN
@@ -249,10 +287,12 @@ def fuse_all(
     frames: list[PerceptionFrame],
     camera: EquirectCamera | None,
     options: LabelOptions,
+    *,
+    static_map: Any | None = None,
 ) -> list[FrameResult]:
-    """Static filter + fusion of every frame (base frame)."""
+    """Static filter + fusion of every frame (base frame); ``static_map`` as :func:`_static_masks`."""
     if options.static_filter and any(len(f.points) for f in frames):
-        det_static, pt_static = _static_masks(frames)
+        det_static, pt_static = _static_masks(frames, static_map)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
         pt_static = [np.zeros(len(f.points), bool) for f in frames]
@@ -486,7 +526,7 @@ def label_recording(
         pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
         camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose, rig.camera.lens_offset)
     t1 = time.perf_counter()
-    fused = fuse_all(frames, camera, opts)
+    fused = fuse_all(frames, camera, opts, static_map=info["static_map"])
     t2 = time.perf_counter()
     labels, fused = track_all(frames, fused, opts, has_camera=camera is not None)
     t3 = time.perf_counter()

@@ -1,0 +1,100 @@
+"""Pass one of ``studio label``: the image detector on its own thread, frames handed on in order."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import studio.detect.image as image_detectors
+from studio.detect.image import ImageDetections, ImageDetectorError
+from studio.io import load_rig
+from studio.pipeline import LabelOptions
+from studio.pipeline.label import perceive
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from studio.sim import simulate
+
+    out = tmp_path_factory.mktemp("sim") / "moving"
+    simulate("moving", out=out, seconds=2.0, seed=3)
+    return out
+
+
+class _Jittery:
+    """Takes 0–40 ms at random; its one box's score is the panorama's mean intensity, so a result handed
+    on with the wrong frame shows. Raises on call ``fail_at``."""
+
+    def __init__(self, fail_at: int | None = None) -> None:
+        self.fail_at = fail_at
+        self.calls = 0
+        self.lock = threading.Lock()
+        self.rng = np.random.default_rng(0)
+
+    def detect(self, pano: np.ndarray) -> ImageDetections:
+        with self.lock:
+            k = self.calls
+            self.calls += 1
+            wait = float(self.rng.uniform(0.0, 0.04))
+        if k == self.fail_at:
+            raise ImageDetectorError("cannot run the network on this panorama")
+        time.sleep(wait)
+        h, w = pano.shape[:2]
+        box = np.array([[w * 0.4, h * 0.3, w * 0.45, h * 0.7]])
+        return ImageDetections(box, np.array([pano.mean() / 255.0]), None, w, h)
+
+
+def test_frames_come_out_in_order_with_their_own_detections(recording, monkeypatch):
+    det = _Jittery()
+    monkeypatch.setattr(image_detectors, "get_image_detector", lambda *a, **k: det)
+    seen: list[tuple[int, float | None, float]] = []
+
+    def on_frame(frame, pf):
+        own = frame.panorama.image.mean() / 255.0 if frame.panorama is not None else float("nan")
+        seen.append((pf.index, None if pf.image is None else float(pf.image.scores[0]), own))
+
+    progress: list[int] = []
+    frames, info = perceive(
+        recording / "recording.mcap",
+        load_rig(recording / "rig.yaml"),
+        LabelOptions(),
+        on_frame=on_frame,
+        progress=lambda done, total: progress.append(done),
+    )
+    assert [f.index for f in frames] == list(range(len(frames)))
+    assert [s[0] for s in seen] == [f.index for f in frames]
+    assert progress == list(range(1, len(frames) + 1))
+    ran = [s for s in seen if s[1] is not None]
+    assert len(ran) == det.calls >= len(frames) // 2 - 1  # every other 10 Hz frame at 0.2 s
+    for _, score, own in ran:
+        assert score == pytest.approx(own)
+    own_by_index = {i: own for i, _, own in seen}
+    for f in frames:
+        assert (f.image is None) == (f.appearance is None)
+        if f.image is not None:
+            assert f.appearance.shape[0] == len(f.image)
+            assert f.image.scores[0] == pytest.approx(own_by_index[f.index])
+    assert info["static_map"] is not None
+    assert info["static_map"].n_scans == sum(len(f.origins) for f in frames)
+    t = info["timings_s"]
+    assert t["image_detection"] > 0.0
+    assert t["waiting_for_images"] >= 0.0
+
+
+def test_an_image_detector_error_stops_pass_one(recording, monkeypatch):
+    monkeypatch.setattr(image_detectors, "get_image_detector", lambda *a, **k: _Jittery(fail_at=3))
+    handed_on: list[int] = []
+    with pytest.raises(ImageDetectorError, match="cannot run the network"):
+        perceive(
+            recording / "recording.mcap",
+            load_rig(recording / "rig.yaml"),
+            LabelOptions(),
+            on_frame=lambda frame, pf: handed_on.append(pf.index),
+        )
+    # frames are handed on in order up to the one whose detection failed, never past it
+    assert handed_on == list(range(len(handed_on)))
+    assert len(handed_on) <= 8
