@@ -2,8 +2,8 @@
 
 Two passes. The first streams the recording once and keeps per frame only what later stages need: image
 detections with an appearance descriptor per box, laser detections in the base frame and the frame's scan
-points. The image detector works on its own thread, on at most two frames at a time (memory stays flat in
-the number of images), while the main thread reads, decodes, runs the laser detector on the next frames and
+points. The image detector works on threads of its own, on at most two frames at a time (memory stays flat
+in the number of images), while the main thread reads, decodes, runs the laser detector on the next frames and
 adds their scans to the static-world map in the odom frame. The second pass fuses, tracks in the
 odom frame (UKF + GNN, RTS smoothing, tracklet stitching) and returns labels.
 """
@@ -192,8 +192,9 @@ def perceive(
             if progress is not None:
                 progress(len(frames), total)
 
-    # The image detector runs on its own thread (and its views on the detector's threads) while this one
-    # reads, decodes and runs the laser detector on the next frames: two detections in flight at most.
+    # The image detector runs on two threads of its own (two frames in flight at most; its views on the
+    # detector's threads) while this one reads, decodes and runs the laser detector on the next frames.
+    # "image_detection" in the timings sums the detections' own durations, so it overlaps the others.
     with open_recording(recording) as rec, ThreadPoolExecutor(2, thread_name_prefix="studio-image") as pool:
         rig = resolve_sensor_poses(rec, rig)
         total = count_frames(rec, rig)
