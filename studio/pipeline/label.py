@@ -192,10 +192,15 @@ def perceive(
             if progress is not None:
                 progress(len(frames), total)
 
-    # The image detector runs on two threads of its own (two frames in flight at most; its views on the
-    # detector's threads) while this one reads, decodes and runs the laser detector on the next frames.
-    # "image_detection" in the timings sums the detections' own durations, so it overlaps the others.
-    with open_recording(recording) as rec, ThreadPoolExecutor(2, thread_name_prefix="studio-image") as pool:
+    # The image detector runs on two threads of its own (two frames in flight at most, one unless the
+    # detector says it is thread-safe; its views on the detector's threads) while this one reads, decodes
+    # and runs the laser detector on the next frames. "image_detection" in the timings sums the
+    # detections' own durations, so it overlaps the others.
+    workers = 2 if getattr(image_detector, "thread_safe", False) else 1
+    with (
+        open_recording(recording) as rec,
+        ThreadPoolExecutor(workers, thread_name_prefix="studio-image") as pool,
+    ):
         rig = resolve_sensor_poses(rec, rig)
         total = count_frames(rec, rig)
         it: Iterator[Any] = iter(iter_frames(rec, rig, report=report))

@@ -26,11 +26,14 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 class _Jittery:
-    """Takes 0–40 ms at random; its one box's score is the panorama's mean intensity, so a result handed
+    """Takes 0–40 ms at random (the first call 0.5 s); its one box's score is the panorama's mean intensity, so a result handed
     on with the wrong frame shows. Raises on call ``fail_at``."""
 
-    def __init__(self, fail_at: int | None = None) -> None:
+    def __init__(self, fail_at: int | None = None, *, thread_safe: bool = False) -> None:
         self.fail_at = fail_at
+        self.thread_safe = thread_safe
+        self.running = 0
+        self.most_at_once = 0
         self.calls = 0
         self.lock = threading.Lock()
         self.rng = np.random.default_rng(0)
@@ -39,17 +42,24 @@ class _Jittery:
         with self.lock:
             k = self.calls
             self.calls += 1
-            wait = float(self.rng.uniform(0.0, 0.04))
+            # the first one long enough that the next panorama arrives while it runs
+            wait = 0.5 if k == 0 else float(self.rng.uniform(0.0, 0.04))
         if k == self.fail_at:
             raise ImageDetectorError("cannot run the network on this panorama")
+        with self.lock:
+            self.running += 1
+            self.most_at_once = max(self.most_at_once, self.running)
         time.sleep(wait)
+        with self.lock:
+            self.running -= 1
         h, w = pano.shape[:2]
         box = np.array([[w * 0.4, h * 0.3, w * 0.45, h * 0.7]])
         return ImageDetections(box, np.array([pano.mean() / 255.0]), None, w, h)
 
 
-def test_frames_come_out_in_order_with_their_own_detections(recording, monkeypatch):
-    det = _Jittery()
+@pytest.mark.parametrize("thread_safe", [False, True])
+def test_frames_come_out_in_order_with_their_own_detections(recording, monkeypatch, thread_safe):
+    det = _Jittery(thread_safe=thread_safe)
     monkeypatch.setattr(image_detectors, "get_image_detector", lambda *a, **k: det)
     seen: list[tuple[int, float | None, float]] = []
 
@@ -78,6 +88,8 @@ def test_frames_come_out_in_order_with_their_own_detections(recording, monkeypat
         if f.image is not None:
             assert f.appearance.shape[0] == len(f.image)
             assert f.image.scores[0] == pytest.approx(own_by_index[f.index])
+    # a detector that does not say it is thread-safe runs one panorama at a time
+    assert det.most_at_once == (2 if thread_safe else 1)
     assert info["static_map"] is not None
     assert info["static_map"].n_scans == sum(len(f.origins) for f in frames)
     t = info["timings_s"]

@@ -170,7 +170,12 @@ class ViewDetections:
 
 @runtime_checkable
 class ImageDetector(Protocol):
-    """Finds people in equirectangular panoramas."""
+    """Finds people in equirectangular panoramas.
+
+    A detector may also set ``thread_safe = True`` when ``detect`` may run on several panoramas at once from
+    different threads (the bundled ones do); ``studio label`` then keeps two panoramas in flight. Without it
+    one detection runs at a time (still beside reading and the laser detector).
+    """
 
     name: str
 

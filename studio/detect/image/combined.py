@@ -76,6 +76,7 @@ class CombinedDetector:
     """
 
     name = "combined"
+    thread_safe = True
 
     def __init__(
         self,

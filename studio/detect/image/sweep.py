@@ -312,6 +312,7 @@ class ViewSweepDetector:
     """
 
     name = "sweep"
+    thread_safe = True  # ``detect`` may run on several panoramas at once (see ``ImageDetector``)
 
     def __init__(
         self,
