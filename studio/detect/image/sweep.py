@@ -327,7 +327,10 @@ class ViewSweepDetector:
         self.views = sweep.views()
         self.renderer = renderer or ViewRenderer()
         self.workers = max(1, int(workers))
-        self._pool: ThreadPoolExecutor | None = None
+        # threads start on first use; made here so two threads' first detections share one pool
+        self._pool = (
+            ThreadPoolExecutor(self.workers, thread_name_prefix="studio-views") if self.workers > 1 else None
+        )
 
     def detect_view(self, image: NDArray[np.uint8]) -> ViewDetections:
         """People in one BGR uint8 view ``(h, w, 3)`` (pre-process → infer → post-process)."""
@@ -340,10 +343,8 @@ class ViewSweepDetector:
 
     def detect_views(self, images: list[NDArray[np.uint8]]) -> list[ViewDetections]:
         """``detect_view`` of every image, ``workers`` at a time, in order."""
-        if self.workers == 1 or len(images) < 2:
+        if self._pool is None or len(images) < 2:
             return [self.detect_view(img) for img in images]
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix=f"studio-{self.name}")
         return list(self._pool.map(self.detect_view, images))
 
     def detect(self, pano: NDArray[np.uint8]) -> ImageDetections:
