@@ -156,13 +156,13 @@ def frames_from_recording(
 ) -> tuple[list[Frame], list[PerceptionFrame], LabelRun, object]:
     """Up to ``n`` frames of a recording, with pass-one perception reduced to the scan points."""
     from studio.io import iter_frames, load_rig, open_recording
-    from studio.pipeline.label import _laser_in_base, _NoDetector
+    from studio.pipeline.perceive import NoLaserDetector, laser_in_base
 
     rig = load_rig(rig_path)
     frames, percs, results, labels = [], [], [], []
     with open_recording(recording) as rec:
         for frame in iter_frames(rec, rig):
-            laser, lz, pts, origins, owner = _laser_in_base(frame, _NoDetector())
+            laser, lz, pts, origins, owner = laser_in_base(frame, NoLaserDetector())
             frames.append(frame)
             percs.append(
                 PerceptionFrame(

@@ -116,7 +116,8 @@ def label_thesis(
     from studio.detect.laser import get_laser_detector
     from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
     from studio.io.sync import SyncReport
-    from studio.pipeline.label import LabelRun, PerceptionFrame, _laser_in_base
+    from studio.pipeline.label import LabelRun
+    from studio.pipeline.perceive import PerceptionFrame, laser_in_base
     from studio.track.base import Observations
     from studio.track.thesis import ThesisTracker
 
@@ -157,7 +158,7 @@ def label_thesis(
                 face_boxes.extend((vd.boxes, vd.scores) for vd in views)
             t2 = time.perf_counter()
             t["image_detection"] += t2 - t1
-            laser, laser_z, points, origins, owner = _laser_in_base(frame, laser_detector)
+            laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector)
             t3 = time.perf_counter()
             t["laser_detection"] += t3 - t2
             laser_xyz = np.c_[laser.xy, laser_z] if len(laser.xy) else np.zeros((0, 3))

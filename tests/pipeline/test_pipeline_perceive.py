@@ -13,7 +13,7 @@ import studio.detect.image as image_detectors
 from studio.detect.image import ImageDetections, ImageDetectorError
 from studio.io import load_rig
 from studio.pipeline import LabelOptions
-from studio.pipeline.label import perceive
+from studio.pipeline.perceive import perceive
 
 
 @pytest.fixture(scope="module")
@@ -26,8 +26,8 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 class _Jittery:
-    """Takes 0–40 ms at random (the first call 0.5 s); its one box's score is the panorama's mean intensity, so a result handed
-    on with the wrong frame shows. Raises on call ``fail_at``."""
+    """Takes 0–40 ms at random (the first call 0.5 s); its one box's score is the panorama's mean
+    intensity, so a result handed on with the wrong frame shows. Raises on call ``fail_at``."""
 
     def __init__(self, fail_at: int | None = None, *, thread_safe: bool = False) -> None:
         self.fail_at = fail_at

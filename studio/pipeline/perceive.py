@@ -1,0 +1,255 @@
+"""Pass one of ``studio label``: stream the recording once, detect people in images and scans.
+
+Per frame it keeps only what later stages need: image detections with an appearance descriptor per box,
+laser detections in the base frame and the frame's scan points. The image detector works on threads of its
+own, on at most two frames at a time (memory stays flat in the number of images), while the main thread
+reads, decodes, runs the laser detector on the next frames and adds their scans to the static-world map in
+the odom frame. :mod:`studio.pipeline.label` runs the second pass.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from studio.detect.laser.base import LaserDetections, merge_detections
+from studio.errors import StudioError
+from studio.geometry.se import Pose2
+from studio.pipeline.base import LabelOptions
+
+__all__ = ["NoLaserDetector", "PerceptionFrame", "laser_in_base", "odom_scans", "perceive"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class PerceptionFrame:
+    """Pass-one output for one frame (detections only; no images are kept)."""
+
+    index: int
+    stamp_ns: int
+    robot_pose: Pose2
+    image: Any | None  # ImageDetections
+    appearance: NDArray[np.float32] | None  # (n_boxes, D)
+    laser: LaserDetections | None  # base frame, segments index into `points`
+    laser_z: FloatArray  # (n_laser,) scan-plane height of each detection in the base frame
+    points: NDArray[np.float32]  # (M, 3) all beams of the frame's scans in the base frame, NaN = no return
+    origins: FloatArray  # (S, 2) scanner positions in the base frame
+    origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
+
+
+def laser_in_base(
+    frame: Any, detector: Any
+) -> tuple[LaserDetections, FloatArray, NDArray[np.float32], FloatArray, NDArray[np.int16]]:
+    """Run ``detector`` on each scan of ``frame`` (a :class:`studio.io.Frame`) and bring it all to the base
+    frame.
+
+    Returns:
+        The detections of all scans merged (their segments index the points), each one's scan-plane height
+        ``(N,)`` m, every beam ``(M, 3)`` float32 in the base frame (NaN = no return, in beam order per
+        scan), the scanners' positions ``(S, 2)`` and which scanner each beam came from ``(M,)``.
+    """
+    parts, zs, pts_all, origins, owner = [], [], [], [], []
+    offset = 0
+    offsets = []
+    for k, sib in enumerate(frame.scans):
+        scan = sib.scan
+        pts2 = scan.points()
+        valid = scan.valid()
+        det = detector.detect(pts2, valid=valid)
+        pose = sib.sensor_pose
+        m = pose.to_pose2().matrix()
+        parts.append(det.transformed(m))
+        p3 = np.zeros((len(pts2), 3))
+        p3[:, :2] = np.nan_to_num(pts2)
+        p3 = pose.apply(p3)
+        p3[~valid] = np.nan
+        pts_all.append(p3.astype(np.float32))
+        owner.append(np.full(len(p3), k, np.int16))
+        origins.append(pose.t[:2])
+        zs.append(np.full(len(det.xy), float(pose.t[2])))
+        offsets.append(offset)
+        offset += len(p3)
+    if not parts:
+        return (
+            LaserDetections.empty(with_segments=True),
+            np.zeros(0),
+            np.zeros((0, 3), np.float32),
+            np.zeros((0, 2)),
+            np.zeros(0, np.int16),
+        )
+    merged = merge_detections(parts, offsets=offsets)
+    z_all = np.concatenate(zs)
+    # height of a merged detection: that of the scan whose points dominate its segment
+    points = np.concatenate(pts_all)
+    if merged.segments is not None and len(points):
+        laser_z = np.array(
+            [float(np.nanmedian(points[s, 2])) if len(s) else float(np.mean(z_all)) for s in merged.segments]
+        )
+    else:
+        laser_z = np.full(len(merged.xy), float(np.mean(z_all)) if len(z_all) else 0.0)
+    return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def perceive(
+    recording: Path,
+    rig: Any,
+    options: LabelOptions,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    on_frame: Callable[[Any, PerceptionFrame], None] | None = None,
+) -> tuple[list[PerceptionFrame], dict[str, Any]]:
+    """Pass one: stream the recording, detect people in images and scans.
+
+    Args:
+        recording: the bag.
+        rig: the loaded rig (:class:`studio.io.rig.Rig`).
+        options: what to run.
+        progress: called as ``progress(done, total)``.
+        on_frame: called with ``(frame, perception)`` for every frame while its image is still in memory
+            (the viewer and the frame exporter hook in here).
+
+    Returns:
+        The frames and a dict of counts/timings/sync report.
+    """
+    from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
+    from studio.io.sync import SyncReport
+
+    use_camera = rig.camera is not None and options.sources in ("both", "camera")
+    use_laser = bool(rig.lasers) and options.sources in ("both", "laser")
+    if options.sources == "camera" and rig.camera is None:
+        raise StudioError("--sources camera needs a camera in the rig")
+    if options.sources == "laser" and not rig.lasers:
+        raise StudioError("--sources laser needs at least one laser in the rig")
+    image_detector = None
+    if use_camera:
+        from studio.detect.image import get_image_detector
+
+        image_detector = get_image_detector(options.image_detector or "movenet")
+    laser_detector = None
+    if use_laser:
+        from studio.detect.laser import get_laser_detector
+
+        laser_detector = get_laser_detector(options.laser_detector or "classical")
+
+    from studio.detect.laser.static_map import StaticMapBuilder
+    from studio.track.appearance import clothing_colours
+
+    # the static-world map grows while the recording is read (this thread mostly waits for the images)
+    static_map = StaticMapBuilder() if options.static_filter else None
+
+    def detect_image(pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
+        assert image_detector is not None
+        t = time.perf_counter()
+        det = image_detector.detect(pano)
+        return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
+
+    t_img = t_las = t_io = t_wait = t_map = 0.0
+    last_image_ns: int | None = None
+    frames: list[PerceptionFrame] = []
+    # frames read but not yet handed on, with their image detection still running (or None)
+    pending: deque[tuple[Any, PerceptionFrame, Future[Any] | None]] = deque()
+    report = SyncReport()
+
+    def hand_on(*, wait_for: int) -> None:
+        """Hand finished frames on in order; wait until at most ``wait_for`` detections are running."""
+        nonlocal t_img, t_wait
+        while pending:
+            frame, pf, job = pending[0]
+            if job is not None:
+                if not job.done() and sum(j is not None for _, _, j in pending) <= wait_for:
+                    return
+                t = time.perf_counter()
+                pf.image, pf.appearance, dt = job.result()
+                t_wait += time.perf_counter() - t
+                t_img += dt
+            pending.popleft()
+            frames.append(pf)
+            if on_frame is not None:
+                on_frame(frame, pf)
+            if progress is not None:
+                progress(len(frames), total)
+
+    # The image detector runs on two threads of its own (two frames in flight at most, one unless the
+    # detector says it is thread-safe; its views on the detector's threads) while this one reads, decodes
+    # and runs the laser detector on the next frames. "image_detection" in the timings sums the
+    # detections' own durations, so it overlaps the others.
+    workers = 2 if getattr(image_detector, "thread_safe", False) else 1
+    with (
+        open_recording(recording) as rec,
+        ThreadPoolExecutor(workers, thread_name_prefix="studio-image") as pool,
+    ):
+        rig = resolve_sensor_poses(rec, rig)
+        total = count_frames(rec, rig)
+        it: Iterator[Any] = iter(iter_frames(rec, rig, report=report))
+        t0 = time.perf_counter()
+        for frame in it:
+            t1 = time.perf_counter()
+            t_io += t1 - t0
+            job = None
+            stamp = frame.stamp_ns
+            if frame.panorama is not None:
+                stamp = frame.panorama.stamp_ns
+            due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
+            if use_camera and frame.panorama is not None and image_detector is not None and due:
+                last_image_ns = stamp
+                job = pool.submit(detect_image, frame.panorama.image)
+            t2 = time.perf_counter()
+            if use_laser and laser_detector is not None:
+                laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector)
+            else:
+                laser, laser_z = None, np.zeros(0)
+                # scan points only (the viewer and the export still show the scans)
+                _, _, points, origins, owner = laser_in_base(frame, NoLaserDetector())
+            t3 = time.perf_counter()
+            t_las += t3 - t2
+            pf = PerceptionFrame(
+                frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
+            )
+            if static_map is not None:
+                for scan in odom_scans(pf):
+                    static_map.add(*scan)
+                t_map += time.perf_counter() - t3
+            pending.append((frame, pf, job))
+            hand_on(wait_for=2)
+            t0 = time.perf_counter()
+        hand_on(wait_for=0)
+    info = {
+        "timings_s": {
+            "read_decode_sync": t_io,
+            "image_detection": t_img,
+            "laser_detection": t_las,
+            "static_map": t_map,
+            "waiting_for_images": t_wait,
+        },
+        "static_map": static_map.finish() if static_map is not None and static_map.n_scans else None,
+        "sync": report.summary(),
+        "frames": len(frames),
+        "use_camera": use_camera,
+        "use_laser": use_laser,
+        "rig": rig,
+    }
+    return frames, info
+
+
+class NoLaserDetector:
+    """A laser detector that finds nobody (scan points only: the viewer and the export still show them)."""
+
+    def detect(self, points: FloatArray, *, valid: Any = None) -> LaserDetections:
+        return LaserDetections.empty(with_segments=True)
+
+
+def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
+    """The frame's scans in the odom frame: ``(points (M, 2), scanner position (2,))``, beams in order with
+    NaN for no return (what :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
+    for k in range(len(f.origins)):
+        sel = f.origin_of_point == k
+        yield f.robot_pose.apply(f.points[sel, :2].astype(np.float64)), f.robot_pose.apply(f.origins[k])
