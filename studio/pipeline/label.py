@@ -78,7 +78,8 @@ def fuse_all(
     static_map: Any | None = None,
 ) -> list[FrameResult]:
     """Static filter + fusion of every frame (base frame); ``static_map`` as :func:`_static_masks`."""
-    if options.static_filter and any(len(f.points) for f in frames):
+    # camera-only runs use neither laser detections nor scan points: no map to build
+    if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
         det_static, pt_static = _static_masks(frames, static_map)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]

@@ -144,12 +144,11 @@ def perceive(
     from studio.track.appearance import clothing_colours
 
     # the static-world map grows while the recording is read (this thread mostly waits for the images)
-    static_map = StaticMapBuilder() if options.static_filter else None
+    static_map = StaticMapBuilder() if options.static_filter and options.sources != "camera" else None
 
-    def detect_image(pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
-        assert image_detector is not None
+    def detect_image(detector: Any, pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
         t = time.perf_counter()
-        det = image_detector.detect(pano)
+        det = detector.detect(pano)
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
 
     t_img = t_las = t_io = t_wait = t_map = 0.0
@@ -201,7 +200,7 @@ def perceive(
             due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
             if use_camera and frame.panorama is not None and image_detector is not None and due:
                 last_image_ns = stamp
-                job = pool.submit(detect_image, frame.panorama.image)
+                job = pool.submit(detect_image, image_detector, frame.panorama.image)
             t2 = time.perf_counter()
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector)
