@@ -31,11 +31,13 @@ from run_table import OUT, recording
 
 from studio.evaluate import evaluate
 from studio.geometry import EquirectCamera
+from studio.geometry.scan_match import ScanOdometry
 from studio.geometry.se import Pose3
 from studio.io import load_rig
 from studio.labels import LabelSet, read_labels
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, perceive, track_all
+from studio.pipeline.perceive import off_people
 
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
@@ -60,6 +62,11 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
+    if options.scan_matching and frames and frames[0].track_pose is None:  # stored before scan matching
+        matcher = ScanOdometry()
+        for f in frames:
+            if f.laser is not None:
+                f.track_pose = matcher.step(off_people(f.points, f.laser), f.robot_pose)
     return frames, cam
 
 

@@ -187,7 +187,10 @@ class _Motion:
         cfg = rig.odometry
         tol = tf.tolerance_ns if tf is not None else 100_000_000
         if cfg is None:
-            report.warn("the rig has no odometry: the robot is taken as static (robot_pose = identity)")
+            report.warn(
+                "the rig has no odometry: robot_pose = identity (studio label's scan matching estimates the "
+                "motion from the lasers)"
+            )
         elif cfg.topic is not None:
             topic = _check_topic(rec, cfg.topic, "odometry", _ODOM_TYPES)
             stamps = array("q")  # compact: 8 + 24 bytes per sample

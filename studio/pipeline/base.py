@@ -40,7 +40,10 @@ class LabelOptions:
         laser_detector: registry name (None: the classical detector).
         image_period_s: run the image detector at most this often, s (0: on every frame). The frames in
             between are fused from the laser alone; tracks carry the camera's confirmation across them.
-        static_filter: suppress laser detections on structure that never moves (odom-frame map).
+        static_filter: suppress laser detections on structure that never moves (world-frame map).
+        scan_matching: correct the odometry's drift by matching each frame's scans to the recent ones
+            (:mod:`studio.geometry.scan_match`; without odometry it is the robot's only motion estimate); the
+            static map and the tracker work in the corrected frame, the outputs stay in the odometry frame.
         min_camera_hits: on rigs with a camera and ``sources=both``, a track must be confirmed by the camera
             (a fused or image observation) in at least this many frames, else it is dropped as laser clutter.
         camera_support_s: on rigs with a camera and ``sources=both``, a track is output at a frame only if
@@ -61,6 +64,7 @@ class LabelOptions:
     laser_detector: str | None = None
     image_period_s: float = 0.2
     static_filter: bool = True
+    scan_matching: bool = True
     min_camera_hits: int = 3
     camera_support_s: float = 3.0
     min_track_s: float = 1.0
@@ -91,6 +95,8 @@ class FrameResult:
         robot_pose: T_odom_base at the frame stamp.
         observations: fused people in the base frame.
         scan_points: ``(M, 3)`` valid scan points off static structure, base frame (None: no laser used).
+        track_pose: T_world_base the tracker uses (the odometry corrected by scan matching), or None for
+            ``robot_pose``.
     """
 
     index: int
@@ -98,3 +104,9 @@ class FrameResult:
     robot_pose: Pose2
     observations: PersonObservations
     scan_points: NDArray[np.float32] | None = None
+    track_pose: Pose2 | None = None
+
+    @property
+    def world_pose(self) -> Pose2:
+        """``track_pose``, else ``robot_pose``."""
+        return self.robot_pose if self.track_pose is None else self.track_pose

@@ -78,7 +78,17 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         pose = las.pose.as_dict() if las.pose is not None else "from TF in the recording"
         lines.append(f"- laser `{las.topic}`, pose: {pose}")
     odo = rig.odometry
-    lines.append(f"- odometry: {odo}" if odo is not None else "- odometry: none (static robot assumed)")
+    matched = (
+        options.method == "studio" and options.scan_matching and options.sources != "camera" and rig.lasers
+    )
+    if odo is not None:
+        lines.append(f"- odometry: {odo}" + (", drift corrected by scan matching" if matched else ""))
+    else:
+        lines.append(
+            "- odometry: none; the robot's motion from scan matching"
+            if matched
+            else "- odometry: none (static robot assumed)"
+        )
     lines += [
         "",
         "## How the labels were produced",
@@ -86,8 +96,9 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         f"`{options.image_detector or 'movenet'}`, laser detector `{options.laser_detector or 'classical'}`",
         "- people boxes on perspective views around the horizon, mapped back to the panorama;",
         "  laser people from a classical leg detector with a static-world filter; fused on the sphere",
-        "  with the camera pose above; tracked in the odom frame (UKF, global nearest neighbour),",
-        "  RTS-smoothed, tracklets stitched.",
+        "  with the camera pose above; tracked in the odom frame, corrected by scan matching (UKF, global",
+        "  nearest neighbour); positions in the odom frame are given in the recording's own odometry,",
+        "  tracks RTS-smoothed, tracklets stitched.",
         f"- {n_labels} person labels; by source: "
         + ", ".join(f"{k} {v} ({100.0 * v / max(n_labels, 1):.0f} %)" for k, v in sources.most_common()),
         "  (`fused`: box confirmed by laser; `laser`: laser only; `image`: range from the box's foot row;",

@@ -8,6 +8,7 @@ labels.
 
 from __future__ import annotations
 
+import bisect
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -24,13 +25,16 @@ from studio.fuse.fusion import fuse_frame
 from studio.geometry import EquirectCamera
 from studio.labels.base import LabelFrame, LabelPerson, as_box
 from studio.pipeline.base import FrameResult, LabelOptions
-from studio.pipeline.perceive import PerceptionFrame, odom_scans, perceive
+from studio.pipeline.perceive import PerceptionFrame, base_scans, odom_scans, perceive
 from studio.track.appearance import APPEARANCE_DIM
 
 __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
 
 FloatArray = NDArray[np.float64]
 _STATIC_OCCUPIED = 0.7  # a cell is structure when it was hit in this share of the scans that saw it
+_BODY_HIT_SHARE = 0.8  # a base-frame cell hit by this share of all scans is the robot's own body ...
+_BODY_MIN_SCANS = 20  # ... judged once there are this many scans
+_VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
 
 
 @dataclass
@@ -49,22 +53,35 @@ class LabelRun:
 
 
 def _static_masks(
-    frames: list[PerceptionFrame], static_map: Any | None = None
+    frames: list[PerceptionFrame], static_map: Any | None = None, body_map: Any | None = None
 ) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
-    """Per frame: which laser detections and which scan points lie on never-moving structure.
+    """Per frame: which laser detections and which scan points lie on never-moving structure or on the
+    robot's own body.
 
-    ``static_map``: the map of the frames' scans when it was built already (by :func:`perceive`)."""
+    ``static_map``, ``body_map``: the maps of the frames' scans in the world and in the base frame when they
+    were built already (by :func:`perceive`)."""
     from studio.detect.laser.static_map import StaticMap
 
     smap = static_map
     if smap is None:
         smap = StaticMap.build(s for f in frames for s in odom_scans(f))
+    body = body_map
+    if body is None:
+        body = StaticMap.build((s for f in frames for s in base_scans(f)), max_free_range=0.0)
+    use_body = body.n_scans >= _BODY_MIN_SCANS
     det_static, pt_static = [], []
     for f in frames:
-        pts_odom = f.robot_pose.apply(f.points[:, :2].astype(np.float64))  # NaN rows stay NaN
-        pt_static.append(smap.static_fraction(pts_odom) >= _STATIC_OCCUPIED)
+        base = f.points[:, :2].astype(np.float64)
+        pts_world = f.world_pose.apply(base)  # NaN rows stay NaN
+        ps = smap.static_fraction(pts_world) >= _STATIC_OCCUPIED
+        if use_body:
+            ps |= body.hit_fraction(base) >= _BODY_HIT_SHARE
+        pt_static.append(ps)
         if f.laser is not None and len(f.laser.xy):
-            det_static.append(smap.is_static(f.laser, pts_odom, occupied=_STATIC_OCCUPIED))
+            ds = smap.is_static(f.laser, pts_world, occupied=_STATIC_OCCUPIED)
+            if use_body:
+                ds |= body.is_static(f.laser, base, occupied=_BODY_HIT_SHARE, of_all_scans=True)
+            det_static.append(ds)
         else:
             det_static.append(np.zeros(0 if f.laser is None else len(f.laser.xy), dtype=bool))
     return det_static, pt_static
@@ -76,23 +93,30 @@ def fuse_all(
     options: LabelOptions,
     *,
     static_map: Any | None = None,
+    body_map: Any | None = None,
 ) -> list[FrameResult]:
-    """Static filter + fusion of every frame (base frame); ``static_map`` as :func:`_static_masks`."""
+    """Static filter + fusion of every frame (base frame); the maps as :func:`_static_masks`."""
     # camera-only runs use neither laser detections nor scan points: no map to build
     if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
-        det_static, pt_static = _static_masks(frames, static_map)
+        det_static, pt_static = _static_masks(frames, static_map, body_map)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
         pt_static = [np.zeros(len(f.points), bool) for f in frames]
-    out = []
-    for f, ds, ps in zip(frames, det_static, pt_static, strict=True):
+    # Image frames first: a static laser detection on a frame without an image is dropped unless a box
+    # took a laser detection at that place on an image frame within ``_VOUCH_S`` (someone standing still
+    # on a spot the laser never saw free looks static).
+    out: list[FrameResult | None] = [None] * len(frames)
+    vouch_ns: list[int] = []
+    vouch_xy: list[FloatArray] = []
+    for i in sorted(range(len(frames)), key=lambda k: frames[k].image is None):
+        f, ds, ps = frames[i], det_static[i], pt_static[i]
         laser = f.laser
         laser_z: FloatArray = f.laser_z
         if laser is not None and ds.any() and f.image is None:
-            keep = np.flatnonzero(~ds)  # no box can vouch for them: drop the static ones now
-            laser = laser.select(keep)
+            keep = ~ds | _vouched(f, laser.xy, vouch_ns, vouch_xy)
+            laser = laser.select(np.flatnonzero(keep))
             laser_z = laser_z[keep]
-            ds = ds[keep]
+            ds = np.zeros(len(laser_z), bool)
         pts = None
         if options.sources != "camera" and len(f.points):
             sel = np.isfinite(f.points[:, 0]) & ~ps
@@ -106,10 +130,36 @@ def fuse_all(
             laser_static=ds if laser is not None else None,
             config=options.fusion,
         )
-        out.append(
-            FrameResult(
-                f.index, f.stamp_ns, f.robot_pose, obs, None if pts is None else pts.astype(np.float32)
-            )
+        if f.image is not None:
+            vouch_ns.append(f.stamp_ns)
+            vouch_xy.append(f.world_pose.apply(obs.xy[np.asarray(obs.source) == "fused"]))
+        out[i] = FrameResult(
+            f.index,
+            f.stamp_ns,
+            f.robot_pose,
+            obs,
+            None if pts is None else pts.astype(np.float32),
+            f.track_pose,
+        )
+    return [r for r in out if r is not None]
+
+
+def _vouched(
+    f: PerceptionFrame, xy: FloatArray, stamps: list[int], places: list[FloatArray]
+) -> NDArray[np.bool_]:
+    """Which of ``xy`` (base frame) lie within ``_VOUCH_M`` of a box-confirmed laser person of an image frame
+    within ``_VOUCH_S`` of ``f`` (``stamps`` sorted, ``places`` their positions in the world frame)."""
+    out = np.zeros(len(xy), bool)
+    if not stamps or not len(xy):
+        return out
+    lo = bisect.bisect_left(stamps, f.stamp_ns - int(_VOUCH_S * 1e9))
+    hi = bisect.bisect_right(stamps, f.stamp_ns + int(_VOUCH_S * 1e9))
+    near = [places[k] for k in range(lo, hi) if len(places[k])]
+    if near:
+        p = np.concatenate(near)
+        w = f.world_pose.apply(xy)
+        out = (
+            np.min(np.hypot(w[:, None, 0] - p[None, :, 0], w[:, None, 1] - p[None, :, 1]), axis=1) <= _VOUCH_M
         )
     return out
 
@@ -123,7 +173,7 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
         pts = fr.scan_points
         extra = []
         if pts is not None and len(pts):
-            inv = fr.robot_pose.inverse()
+            inv = fr.world_pose.inverse()
             taken = fr.observations.xy
             for p in tf.points:
                 if p.det_index >= 0:
@@ -159,7 +209,7 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
     from studio.track.base import Observations
 
     obs = fr.observations
-    pose = fr.robot_pose
+    pose = fr.world_pose
     R = pose.matrix()[:2, :2]
     xy = pose.apply(obs.xy) if len(obs) else np.zeros((0, 2))
     cov = R @ obs.cov @ R.T if len(obs) else np.zeros((0, 2, 2))
@@ -246,13 +296,14 @@ def track_all(
 
     labels = []
     for fr, tf in zip(fused, result.frames, strict=True):
-        inv = fr.robot_pose.inverse()
+        inv = fr.world_pose.inverse()
         R = inv.matrix()[:2, :2]
         people = []
         for p in tf.points:
             if p.track_id not in keep or not supported(p.track_id, fr.stamp_ns):
                 continue
             xb = inv.apply(p.xy)
+            xo = fr.robot_pose.apply(xb)  # the outputs stay in the odometry frame
             cov = R @ p.cov @ R.T
             o = fr.observations
             j = p.det_index
@@ -262,8 +313,8 @@ def track_all(
                     id=p.track_id,
                     x=float(xb[0]),
                     y=float(xb[1]),
-                    x_odom=float(p.xy[0]),
-                    y_odom=float(p.xy[1]),
+                    x_odom=float(xo[0]),
+                    y_odom=float(xo[1]),
                     cov=((cov[0, 0], cov[0, 1]), (cov[1, 0], cov[1, 1])),
                     source=o.source[j] if j >= 0 else sources[p.track_id].most_common(1)[0][0],
                     box=box,
@@ -314,7 +365,7 @@ def label_recording(
         pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
         camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose, rig.camera.lens_offset)
     t1 = time.perf_counter()
-    fused = fuse_all(frames, camera, opts, static_map=info["static_map"])
+    fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_map=info["body_map"])
     t2 = time.perf_counter()
     labels, fused = track_all(frames, fused, opts, has_camera=camera is not None)
     t3 = time.perf_counter()
@@ -326,6 +377,7 @@ def label_recording(
         "by_source": _count_sources(fused),
         "tracks": len({p.id for lf in labels for p in lf.people}),
         "sync": info["sync"],
+        "scan_matching": info["scan_matching"],
     }
     image_dets = [(f.index, f.stamp_ns, f.image) for f in frames if f.image is not None]
     return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes, image_dets)

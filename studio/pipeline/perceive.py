@@ -25,7 +25,15 @@ from studio.errors import StudioError
 from studio.geometry.se import Pose2
 from studio.pipeline.base import LabelOptions
 
-__all__ = ["NoLaserDetector", "PerceptionFrame", "laser_in_base", "odom_scans", "perceive"]
+__all__ = [
+    "NoLaserDetector",
+    "PerceptionFrame",
+    "base_scans",
+    "laser_in_base",
+    "odom_scans",
+    "off_people",
+    "perceive",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -44,6 +52,13 @@ class PerceptionFrame:
     points: NDArray[np.float32]  # (M, 3) all beams of the frame's scans in the base frame, NaN = no return
     origins: FloatArray  # (S, 2) scanner positions in the base frame
     origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
+    # T_world_base: the odometry pose corrected by scan matching (None: robot_pose, no correction)
+    track_pose: Pose2 | None = None
+
+    @property
+    def world_pose(self) -> Pose2:
+        """The pose the static map and the tracker use: ``track_pose``, else the odometry's."""
+        return self.robot_pose if self.track_pose is None else self.track_pose
 
 
 def laser_in_base(
@@ -141,17 +156,23 @@ def perceive(
         laser_detector = get_laser_detector(options.laser_detector or "classical")
 
     from studio.detect.laser.static_map import StaticMapBuilder
+    from studio.geometry.scan_match import ScanOdometry
     from studio.track.appearance import clothing_colours
 
     # the static-world map grows while the recording is read (this thread mostly waits for the images)
     static_map = StaticMapBuilder() if options.static_filter and options.sources != "camera" else None
+    # and a map of the scans in the base frame: what every scan hits there is the robot's own body
+    body_map = StaticMapBuilder(max_free_range=0.0) if static_map is not None else None
+    # odometry drift corrected by matching the scans (the static map and the tracker need a fixed world)
+    matcher = ScanOdometry() if options.scan_matching and use_laser else None
+    has_odometry = rig.odometry is not None
 
     def detect_image(detector: Any, pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
         t = time.perf_counter()
         det = detector.detect(pano)
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
 
-    t_img = t_las = t_io = t_wait = t_map = 0.0
+    t_img = t_las = t_io = t_wait = t_map = t_match = 0.0
     last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
     # frames read but not yet handed on, with their image detection still running (or None)
@@ -213,9 +234,17 @@ def perceive(
             pf = PerceptionFrame(
                 frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
-            if static_map is not None:
+            if matcher is not None and laser is not None:
+                pf.track_pose = matcher.step(
+                    off_people(points, laser), frame.robot_pose if has_odometry else None
+                )
+                t_match += time.perf_counter() - t3
+                t3 = time.perf_counter()
+            if static_map is not None and body_map is not None:
                 for scan in odom_scans(pf):
                     static_map.add(*scan)
+                for scan in base_scans(pf):
+                    body_map.add(*scan)
                 t_map += time.perf_counter() - t3
             pending.append((frame, pf, job))
             hand_on(wait_for=2)
@@ -226,10 +255,15 @@ def perceive(
             "read_decode_sync": t_io,
             "image_detection": t_img,
             "laser_detection": t_las,
+            "scan_matching": t_match,
             "static_map": t_map,
             "waiting_for_images": t_wait,
         },
         "static_map": static_map.finish() if static_map is not None and static_map.n_scans else None,
+        "body_map": body_map.finish() if body_map is not None and body_map.n_scans else None,
+        "scan_matching": None
+        if matcher is None
+        else {"matched": matcher.matched, "rejected": matcher.rejected},
         "sync": report.summary(),
         "frames": len(frames),
         "use_camera": use_camera,
@@ -237,6 +271,21 @@ def perceive(
         "rig": rig,
     }
     return frames, info
+
+
+def base_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
+    """The frame's scans in the base frame, as :func:`odom_scans` (for the map of the robot's body)."""
+    for k in range(len(f.origins)):
+        yield f.points[f.origin_of_point == k, :2].astype(np.float64), f.origins[k]
+
+
+def off_people(points: NDArray[np.float32], laser: LaserDetections) -> FloatArray:
+    """``(K, 2)`` the frame's points in the base frame without those of the laser detections (people move)."""
+    keep = np.isfinite(points[:, 0])
+    if laser.segments is not None:
+        for seg in laser.segments:
+            keep[seg] = False
+    return points[keep, :2].astype(np.float64)
 
 
 class NoLaserDetector:
@@ -247,8 +296,10 @@ class NoLaserDetector:
 
 
 def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
-    """The frame's scans in the odom frame: ``(points (M, 2), scanner position (2,))``, beams in order with
-    NaN for no return (what :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
+    """The frame's scans in the world frame (:attr:`PerceptionFrame.world_pose`): ``(points (M, 2), scanner
+    position (2,))``, beams in order with NaN for no return (what
+    :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
+    pose = f.world_pose
     for k in range(len(f.origins)):
         sel = f.origin_of_point == k
-        yield f.robot_pose.apply(f.points[sel, :2].astype(np.float64)), f.robot_pose.apply(f.origins[k])
+        yield pose.apply(f.points[sel, :2].astype(np.float64)), pose.apply(f.origins[k])

@@ -6,12 +6,17 @@ import json
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from studio.io import load_rig
 from studio.labels import read_labels
+from studio.pipeline import LabelOptions
+from studio.pipeline.label import label_recording
+from studio.pipeline.perceive import perceive
 
 pytestmark = pytest.mark.slow
 
@@ -84,3 +89,37 @@ def test_bad_rig_is_one_clear_error(shared_data: Path, tmp_path: Path, rig_text:
     assert message in res.stderr
     assert res.stderr.count("\n") == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_scan_matching_keeps_a_standing_robot_still_among_walking_people(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    """demo_stationary: the robot never moves while people walk past; the scans must agree."""
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: laser\nlasers:\n  - topic: /scan\n")
+    frames, info = perceive(
+        shared_data / "demo_stationary_simple_environment.bag", load_rig(rig), LabelOptions(sources="laser")
+    )
+    assert info["scan_matching"]["matched"] >= 0.95 * (len(frames) - 1)
+    poses = np.array([[f.world_pose.x, f.world_pose.y, f.world_pose.yaw] for f in frames])
+    assert np.abs(poses[:, :2]).max() < 0.05
+    assert np.degrees(np.abs(poses[:, 2]).max()) < 1.0
+
+
+def test_scan_matching_gives_a_robot_without_odometry_its_motion(shared_data: Path, tmp_path: Path) -> None:
+    """negative_2: a robot drives ~10 m through an empty room with no odometry and no TF. Taken as static,
+    the room smears into the static map and its furniture becomes people; with the motion from scan
+    matching the map is sharp and far fewer false people remain (5.5 → 2.4 per frame when measured)."""
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: left_laser\nlasers:\n  - topic: /left_scan\n")
+    per_frame = {}
+    for on in (True, False):
+        run = label_recording(
+            shared_data / "negative_2.bag",
+            load_rig(rig),
+            options=replace(LabelOptions(sources="laser"), scan_matching=on),
+        )
+        per_frame[on] = sum(len(f.people) for f in run.labels) / len(run.labels)
+        if on:
+            assert run.counts["scan_matching"]["rejected"] <= 0.05 * len(run.labels)
+    assert per_frame[True] < 0.6 * per_frame[False]

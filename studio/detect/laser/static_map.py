@@ -131,6 +131,15 @@ class StaticMap:
         out[ok] = h[ok] / seen[ok]
         return out
 
+    def hit_fraction(self, points: ArrayLike) -> FloatArray:
+        """``(K,)`` share of all the map's scans that hit each point's cell (0 for NaN points).
+
+        In a map of the scans in the robot's base frame, returns from the robot's own body (a mast, a wheel
+        guard, another scanner) score near 1 whatever the robot does; the world passing by scores low.
+        """
+        h, _ = self._lookup(points)
+        return h / max(self.n_scans, 1)
+
     def is_static(
         self,
         detections: LaserDetections,
@@ -140,6 +149,7 @@ class StaticMap:
         occupied: float = 0.7,
         min_share: float = 0.7,
         min_observations: int = 5,
+        of_all_scans: bool = False,
     ) -> NDArray[np.bool_]:
         """Which detections lie on static structure.
 
@@ -152,17 +162,25 @@ class StaticMap:
             min_share: a detection is static when at least this share of its segment points is on static
                 cells.
             min_observations: see :meth:`static_fraction`.
+            of_all_scans: judge cells by :meth:`hit_fraction` (the share of all scans that hit them)
+                instead of the occupied fraction (a base-frame map of the robot's body).
 
         Returns:
             ``(N,)`` bool.
         """
+
+        def fraction(p: FloatArray) -> FloatArray:
+            if of_all_scans:
+                return self.hit_fraction(p)
+            return self.static_fraction(p, min_observations=min_observations)
+
         n = len(detections)
         out = np.zeros(n, dtype=bool)
         if n == 0:
             return out
         if points is not None and detections.segments is not None:
             pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-            frac = self.static_fraction(pts, min_observations=min_observations)
+            frac = fraction(pts)
             for i, seg in enumerate(detections.segments):
                 seg = seg[np.all(np.isfinite(pts[seg]), axis=1)]
                 if seg.size:
@@ -173,7 +191,7 @@ class StaticMap:
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         if p.shape[0] != n:
             raise ValueError(f"xy must have shape ({n}, 2), got {p.shape}")
-        return self.static_fraction(p, min_observations=min_observations) >= occupied
+        return fraction(p) >= occupied
 
     def filter(
         self,

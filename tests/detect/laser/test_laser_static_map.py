@@ -88,6 +88,27 @@ def test_body_map_in_sensor_frame_finds_self_hits():
     assert body.static_fraction(np.array([[2.0, 1.0]]))[0] < 0.5
 
 
+def test_body_map_of_hits_alone_judges_by_the_share_of_all_scans():
+    # what studio label builds: base-frame hits only (no free space drawn); a post fixed to the robot is hit
+    # in every scan, a person walking past in a third of them, a wall that the moving robot sees
+    # everywhere along its way in none for long
+    scans = []
+    for k in range(30):
+        walker = (1.0 + 0.1 * k, -1.0, 0.15) if k < 10 else (9.0, 9.0, 0.15)
+        pts, _ = cast(circles=[(0.3, 0.2, 0.03), walker], walls=[(5.0 - 0.2 * k, -3, 5.0 - 0.2 * k, 3)])
+        scans.append((pts, np.zeros(2)))
+    body = StaticMap.build(scans, max_free_range=0.0)
+    assert not body.free.any()
+    post, walk, wall = np.array([[0.27, 0.2]]), np.array([[1.35, -1.0]]), np.array([[3.0, 0.0]])
+    assert body.hit_fraction(post)[0] > 0.9
+    assert body.hit_fraction(walk)[0] < 0.2
+    assert body.hit_fraction(wall)[0] < 0.2
+    assert body.hit_fraction(np.array([[np.nan, 0.0]]))[0] == 0.0
+    xy = np.concatenate([post, walk])
+    dets = LaserDetections(xy, np.full(2, 0.9), np.full(2, KIND_BLOB), np.full(2, 0.1))
+    assert body.is_static(dets, xy=xy, occupied=0.8, of_all_scans=True).tolist() == [True, False]
+
+
 def test_empty_and_bad_cell():
     smap = StaticMap.build([(np.full((4, 2), np.nan), np.zeros(2))])
     assert smap.n_scans == 1
