@@ -20,7 +20,9 @@ least ``min_views`` observations, their whole-tracklet colours differ by at most
 ``1 + d_app / reid_max_appearance``: a re-identification never beats a good motion bridge.
 
 Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
-unlinked, and chains (A → B → C) follow.
+unlinked, and chains (A → B → C) follow. Tracklets without usable colours (``min_views``) attach by motion
+only, after the described ones are linked; a chain of them that nothing continues goes into the gap of a
+re-identification when it lies in that gap near both ends (someone far away, standing still).
 """
 
 from __future__ import annotations
@@ -85,6 +87,8 @@ class StitchConfig:
             fraction of ``appearance_weight`` (unknown is not a perfect match).
         miss_cost: cost of leaving a tracklet end or start unlinked; links are chosen to minimise the total,
             so one good link beats two poor ones that conflict with it.
+        fill_distance, fill_speed: a chain of undescribed tracklets goes into the gap of a
+            re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
     """
 
     max_gap_s: float = 3.0
@@ -98,6 +102,8 @@ class StitchConfig:
     min_views: int = 3
     unknown_appearance: float = 0.5
     miss_cost: float = 1.5
+    fill_distance: float = 1.0
+    fill_speed: float = 0.5
 
     def __post_init__(self) -> None:
         if self.max_gap_s <= 0 or self.max_appearance <= 0 or self.reid_max_appearance <= 0:
@@ -163,7 +169,7 @@ def stitch_links(tracklets: list[Tracklet], *, config: StitchConfig | None = Non
     tails = [t for t in tracklets if t.track_id not in nxt]
     heads = [t for t in tracklets if t.track_id not in prv]
     second = _assign(tails, heads, cfg, lambda a, b: not (a.track_id in desc_ids and b.track_id in desc_ids))
-    return _unjoin(first, second, desc_ids)
+    return _fill_gaps(tracklets, _unjoin(first, second, desc_ids), desc_ids, cfg)
 
 
 def _assign(
@@ -204,6 +210,60 @@ def _unjoin(
                 seen_described, bridge = True, []
             cur = nxt
     return sorted((a, b) for a, (b, _, _) in links.items() if a not in drop)
+
+
+def _fill_gaps(
+    tracklets: list[Tracklet], links: list[tuple[int, int]], described: set[int], cfg: StitchConfig
+) -> list[tuple[int, int]]:
+    """Put chains of undescribed tracklets that nothing continues into the gap of a re-identification.
+
+    Pass 1 joins A → C across a long gap by colours; the pieces the camera could not describe in between
+    (someone far away, standing where A ended) are then neither before nor after anything. A free chain of
+    them goes between A and C when it lies inside the gap in time and each joint is at most
+    ``fill_distance + fill_speed · gap`` long; several go in one after another in time.
+    """
+    by_id = {t.track_id: t for t in tracklets}
+    nxt = dict(links)
+    prv = {b: a for a, b in links}
+    free = []  # (head, tail) of chains of undescribed tracklets linked to nothing outside themselves
+    for t in tracklets:
+        if t.track_id in prv or t.track_id in described:
+            continue
+        chain = [t.track_id]
+        while chain[-1] in nxt:
+            chain.append(nxt[chain[-1]])
+        if all(c not in described for c in chain):
+            free.append((by_id[chain[0]], by_id[chain[-1]]))
+    free.sort(key=lambda ht: ht[0].start_ns)
+
+    def joint(a: Tracklet, b: Tracklet) -> float | None:
+        """Length of the joint a → b, or None when it is not allowed."""
+        gap = (b.start_ns - a.end_ns) * 1e-9
+        d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
+        return d if gap > 0.0 and d <= cfg.fill_distance + cfg.fill_speed * gap else None
+
+    # the gaps of re-identifications: host (a, c) -> the tracklet its chain reaches so far
+    hosts = {
+        (a, c): by_id[a]
+        for a, c in links
+        if a in described and c in described and (by_id[c].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s
+    }
+    out = set(links)
+    for head, tail in free:  # in time order; each goes into the gap whose ends it lies nearest
+        best, best_d = None, np.inf
+        for (a, c), cur in hosts.items():
+            end = by_id[c]
+            if head.start_ns <= cur.end_ns or tail.end_ns >= end.start_ns:
+                continue
+            d1, d2 = joint(cur, head), joint(tail, end)
+            if d1 is not None and d2 is not None and d1 + d2 < best_d:
+                best, best_d = (a, c), d1 + d2
+        if best is not None:
+            cur = hosts[best]
+            out.discard((cur.track_id, best[1]))
+            out |= {(cur.track_id, head.track_id), (tail.track_id, best[1])}
+            hosts[best] = tail
+    return sorted(out)
 
 
 def chain_links(ids: list[int], links: list[tuple[int, int]]) -> dict[int, int]:

@@ -103,3 +103,21 @@ def test_two_people_are_not_joined_through_a_laser_tracklet():
     links = stitch_links([red, laser, blue])
     assert len(links) == 1
     assert links[0] in ((0, 1), (1, 2))
+
+
+def test_undescribed_pieces_go_into_the_gap_of_a_re_identification_nearest_them():
+    # a far person stands at (8, 0) from t = 10 s to 40 s: the camera describes them at the start and the
+    # end, in between only the laser sees them (two colourless pieces); someone else in red left at (0, 5)
+    # at t = 5 s and comes back there at t = 45 s
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=still, app=BLUE)
+    u1 = tl(1, 14.0, 20.0, (8.1, 0.0), (8.1, 0.1), v=still)
+    u2 = tl(2, 20.5, 30.0, (8.1, 0.1), (8.0, 0.0), v=still)
+    c = tl(3, 35.0, 40.0, (8.0, 0.1), (8.0, 0.1), v=still, app=BLUE)
+    red = tl(4, 0.0, 5.0, (0.0, 5.0), (0.0, 5.0), v=still, app=RED)
+    red_back = tl(5, 45.0, 50.0, (0.0, 5.0), (0.0, 5.0), v=still, app=RED)
+    links = stitch_links([a, u1, u2, c, red, red_back])
+    assert links == [(0, 1), (1, 2), (2, 3), (4, 5)]
+    # a piece elsewhere (4 m from both ends) stays out
+    away = tl(6, 14.0, 20.0, (8.0, 4.0), (8.0, 4.0), v=still)
+    assert stitch_links([a, away, c]) == [(0, 3)]
