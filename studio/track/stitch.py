@@ -98,7 +98,7 @@ class StitchConfig:
     max_appearance: float = 25.0
     appearance_weight: float = 1.0
     reid_max_gap_s: float = 60.0
-    reid_max_appearance: float = 8.0
+    reid_max_appearance: float = 10.0
     min_views: int = 3
     unknown_appearance: float = 0.5
     miss_cost: float = 1.5
