@@ -7,7 +7,8 @@
    dropped; where two tracklets came close and their clothing colours say they came out of the encounter
    the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered
    and RTS-smoothed on their own and then **stitched** across gaps (:mod:`studio.track.stitch`: motion +
-   appearance, solved globally); a continuation takes the id of the tracklet it continues.
+   appearance, solved globally); a continuation takes the id of the tracklet it continues, and one that
+   started before the tracklet it continues ended (its tail had left the person) replaces that tail.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
 4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped
@@ -146,6 +147,7 @@ def _tracklet(
     run, x, P = _estimate(obs, hits, cfg, cache)
     n = max(1, cfg.appearance_frames)
     desc = _descriptors(obs, hits)
+    at = np.array([i for i, _ in hits]) - hits[0][0]
     return Tracklet(
         tid,
         int(run.stamps_ns[0]),
@@ -158,6 +160,9 @@ def _tracklet(
         median_appearance(desc[-n:]) if len(desc) else None,
         median_appearance(desc) if len(desc) else None,
         len(desc),
+        run.stamps_ns[at],
+        run.x[at],
+        run.P[at],
     )
 
 
@@ -221,8 +226,11 @@ def track_offline(
     else:
         root = {tid: tid for tid in tracklets}
     merged: dict[int, _Hits] = {}
-    for tid, h in tracklets.items():
-        merged.setdefault(root[tid], []).extend(h)
+    # chain members in order of their start: one that starts before the previous one ended takes over
+    # from there (the previous one's tail is given up)
+    for tid, h in sorted(tracklets.items(), key=lambda kv: kv[1][0][0]):
+        chain = merged.setdefault(root[tid], [])
+        chain[:] = [x for x in chain if x[0] < h[0][0]] + h
     kept = []
     for tid, h in merged.items():
         h.sort()

@@ -28,7 +28,7 @@ re-identification when it lies in that gap near both ends (someone far away, sta
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +53,9 @@ class Tracklet:
         app_start, app_end: (6,) appearance descriptors near its start / end, or None.
         app: (6,) descriptor of the whole tracklet, or None.
         n_app: how many observations ``app`` comes from.
+        hit_ns, x_hit, P_hit: (K,) stamps of its observations and (K, 4) / (K, 4, 4) its forward-filtered
+            states there (each from the observations up to it), or None; with them a tracklet may be
+            continued by one that starts before it ends (its tail is then given up).
     """
 
     track_id: int
@@ -66,6 +69,19 @@ class Tracklet:
     app_end: NDArray[np.float32] | None = None
     app: NDArray[np.float32] | None = None
     n_app: int = 0
+    hit_ns: NDArray[np.int64] | None = None
+    x_hit: FloatArray | None = None
+    P_hit: FloatArray | None = None
+
+    def cut_before(self, stamp_ns: int) -> Tracklet | None:
+        """This tracklet as it stood at its last observation before ``stamp_ns`` (forward-filtered end
+        state), or None when it has fewer than two observations before then."""
+        if self.hit_ns is None or self.x_hit is None or self.P_hit is None:
+            return None
+        k = int(np.searchsorted(self.hit_ns, stamp_ns)) - 1
+        if k < 1:
+            return None
+        return replace(self, end_ns=int(self.hit_ns[k]), x_end=self.x_hit[k], P_end=self.P_hit[k])
 
 
 @dataclass(frozen=True)
@@ -87,6 +103,10 @@ class StitchConfig:
             fraction of ``appearance_weight`` (unknown is not a perfect match).
         miss_cost: cost of leaving a tracklet end or start unlinked; links are chosen to minimise the total,
             so one good link beats two poor ones that conflict with it.
+        max_overlap_s, overlap_cost: B may continue A although it starts up to ``max_overlap_s`` before A
+            ends (A's tail left its person — pulled onto clutter or a neighbour — and B took the person
+            over): the link is judged from A's state at its last observation before B starts, costs
+            ``overlap_cost`` more, and A's observations from B's start on are given up.
         fill_distance, fill_speed: a chain of undescribed tracklets goes into the gap of a
             re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
     """
@@ -102,6 +122,8 @@ class StitchConfig:
     min_views: int = 3
     unknown_appearance: float = 0.5
     miss_cost: float = 1.5
+    max_overlap_s: float = 3.0
+    overlap_cost: float = 0.25
     fill_distance: float = 1.0
     fill_speed: float = 0.5
 
@@ -115,7 +137,13 @@ class StitchConfig:
 def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
     gap = (b.start_ns - a.end_ns) * 1e-9
     if gap <= 0.0:
-        return None
+        if -gap > cfg.max_overlap_s or b.start_ns <= a.start_ns:
+            return None
+        head = a.cut_before(b.start_ns)
+        if head is None:
+            return None
+        c = _pair_cost(head, b, cfg)
+        return None if c is None else c + cfg.overlap_cost
     if gap > cfg.max_gap_s:
         return _reid_cost(a, b, gap, cfg)
     pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]

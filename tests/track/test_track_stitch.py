@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -121,3 +123,26 @@ def test_undescribed_pieces_go_into_the_gap_of_a_re_identification_nearest_them(
     # a piece elsewhere (4 m from both ends) stays out
     away = tl(6, 14.0, 20.0, (8.0, 4.0), (8.0, 4.0), v=still)
     assert stitch_links([a, away, c]) == [(0, 3)]
+
+
+def with_hits(t: Tracklet, stamps_s: np.ndarray, xy: np.ndarray) -> Tracklet:
+    """``t`` with forward-filtered states at its observations (velocity from the path)."""
+    v = np.gradient(xy, stamps_s, axis=0)
+    x = np.column_stack([xy, v])
+    return replace(
+        t, hit_ns=np.round(stamps_s * S).astype(np.int64), x_hit=x, P_hit=np.repeat(P[None], len(x), 0)
+    )
+
+
+def test_a_tracklet_whose_tail_left_its_person_is_continued_by_the_one_that_took_over():
+    # A walks along +x at 1 m/s from t = 0; from t = 8 s its tail follows clutter off to the side (y = 1),
+    # while B picks the person up at t = 8.2 s on A's path
+    ts = np.arange(0.0, 10.01, 0.1)
+    path = np.column_stack([ts - 5.0, np.where(ts < 8.0, 0.0, np.minimum(ts - 8.0, 1.0))])
+    a = with_hits(tl(0, 0.0, 10.0, path[0], path[-1], v=(0.0, 0.0), app=RED), ts, path)
+    b = tl(1, 8.2, 15.0, (3.2, 0.0), (10.0, 0.0), app=RED)
+    assert stitch_links([a, b]) == [(0, 1)]
+    # not without the states along A, not when B starts too early, not off A's path
+    assert stitch_links([replace(a, hit_ns=None), b]) == []
+    assert stitch_links([a, b], config=StitchConfig(max_overlap_s=1.0)) == []
+    assert stitch_links([a, tl(2, 8.2, 15.0, (3.2, 2.5), (10.0, 2.5), app=RED)]) == []
