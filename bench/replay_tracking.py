@@ -31,7 +31,7 @@ from run_table import OUT, recording
 
 from studio.evaluate import evaluate
 from studio.geometry import EquirectCamera
-from studio.geometry.scan_match import ScanOdometry
+from studio.geometry.scan_match import ScanMatchConfig, ScanOdometry
 from studio.geometry.se import Pose3
 from studio.io import load_rig
 from studio.labels import LabelSet, read_labels
@@ -63,7 +63,7 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
     if options.scan_matching and frames and frames[0].track_pose is None:  # stored before scan matching
-        matcher = ScanOdometry()
+        matcher = ScanOdometry(ScanMatchConfig(every=2))  # as studio label's pass one
         for f in frames:
             if f.laser is not None:
                 f.track_pose = matcher.step(off_people(f.points, f.laser), f.robot_pose)

@@ -56,6 +56,8 @@ class ScanMatchConfig:
         min_inliers, min_inlier_fraction: a registration counts when at least this many points, and this
             share of the points, end within ``min_match`` of the map.
         max_correction, max_correction_yaw: a registration that moves the prediction farther is rejected.
+        every: with odometry, register every this many frames; the frames between follow the odometry from
+            the last registered one (without odometry every frame is registered).
         normal_neighbours, normal_radius: a map point needs this many neighbours within this radius, all
             on a line (spread across the line at most ``max_flatness`` times the spread along it); its
             normal comes from them. Points on clutter, corners and sparse far returns are left out.
@@ -74,14 +76,21 @@ class ScanMatchConfig:
     min_inlier_fraction: float = 0.4
     max_correction: float = 0.3
     max_correction_yaw: float = np.radians(5.0)
+    every: int = 1
     normal_neighbours: int = 6
     normal_radius: float = 0.3
     max_flatness: float = 0.3
 
     def __post_init__(self) -> None:
-        if not (0 < self.min_match <= self.max_match) or self.iterations < 1 or self.max_points < 10:
+        if (
+            not (0 < self.min_match <= self.max_match)
+            or self.iterations < 1
+            or self.max_points < 10
+            or self.every < 1
+        ):
             raise GeometryError(
-                "scan matching needs 0 < min_match <= max_match, iterations >= 1 and max_points >= 10"
+                "scan matching needs 0 < min_match <= max_match, iterations >= 1, max_points >= 10 and "
+                "every >= 1"
             )
 
 
@@ -100,11 +109,14 @@ class ScanOdometry:
         config: options.
         matched, rejected: frames registered / frames where the prediction stood (no map yet, too few
             points, too few matches or too large a correction).
+        skipped: frames between registrations (``every``).
     """
 
     config: ScanMatchConfig = field(default_factory=ScanMatchConfig)
     matched: int = 0
     rejected: int = 0
+    skipped: int = 0
+    _since: int = field(default=0, repr=False)
     _keyframes: list[tuple[FloatArray, FloatArray]] = field(default_factory=list, repr=False)
     _map: _Map | None = field(default=None, repr=False)
     _pose: Pose2 | None = field(default=None, repr=False)
@@ -131,6 +143,12 @@ class ScanOdometry:
         else:
             inc = self._step if odom is None or self._odom is None else self._odom.inverse().compose(odom)
             guess = self._pose.compose(inc)
+            self._since += 1
+            if odom is not None and self._since < cfg.every:
+                self.skipped += 1
+                self._pose, self._odom = guess, odom
+                return guess
+            self._since = 0
             registered = self._register(pts, guess)
             if registered is None:
                 self.rejected += 1

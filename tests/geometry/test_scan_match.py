@@ -142,3 +142,23 @@ def test_a_jump_larger_than_the_correction_limit_is_rejected() -> None:
 def test_bad_config_is_an_error() -> None:
     with pytest.raises(GeometryError):
         ScanMatchConfig(min_match=0.6, max_match=0.5)
+    with pytest.raises(GeometryError):
+        ScanMatchConfig(every=0)
+
+
+def test_registering_every_other_frame_follows_the_odometry_in_between() -> None:
+    rng = np.random.default_rng(2)
+    truth = loop_path()
+    odom = drifting(truth)
+    so = ScanOdometry(ScanMatchConfig(every=2))
+    est = [so.step(cast(ROOM, p, noise=0.01, rng=rng), o) for p, o in zip(truth, odom, strict=True)]
+    assert so.matched + so.rejected == (len(truth) - 1) // 2
+    assert so.skipped == len(truth) - 1 - so.matched - so.rejected
+    err = np.array([error(t, e) for t, e in zip(truth, est, strict=True)])
+    assert err[:, 0].max() < 0.05
+    assert err[:, 1].max() < 1.5
+    # without odometry every frame is registered
+    so = ScanOdometry(ScanMatchConfig(every=2))
+    for p in truth[:20]:
+        so.step(cast(ROOM, p), None)
+    assert so.skipped == 0
