@@ -31,7 +31,7 @@ def _legs(c: np.ndarray) -> np.ndarray:
 
 
 def _frame(k: int, with_image: bool) -> PerceptionFrame:
-    person = PERSON + [0.04 * (k % 3 - 1), 0.0]  # sways a little
+    person = PERSON + np.array([0.04 * (k % 3 - 1), 0.0])  # sways a little
     pts2 = np.concatenate([_legs(person), _legs(CHAIR)])
     pts = np.zeros((len(pts2), 3), np.float32)
     pts[:, :2] = pts2
