@@ -53,34 +53,42 @@ class LabelRun:
 
 
 def _static_masks(
-    frames: list[PerceptionFrame], static_map: Any | None = None, body_map: Any | None = None
+    frames: list[PerceptionFrame], static_map: Any | None = None, body_maps: list[Any] | None = None
 ) -> tuple[list[NDArray[np.bool_]], list[NDArray[np.bool_]]]:
     """Per frame: which laser detections and which scan points lie on never-moving structure or on the
     robot's own body.
 
-    ``static_map``, ``body_map``: the maps of the frames' scans in the world and in the base frame when they
-    were built already (by :func:`perceive`)."""
+    ``static_map``, ``body_maps``: the map of the frames' scans in the world frame and one map per scanner
+    of its scans in the base frame, when they were built already (by :func:`perceive`)."""
     from studio.detect.laser.static_map import StaticMap
 
     smap = static_map
     if smap is None:
         smap = StaticMap.build(s for f in frames for s in odom_scans(f))
-    body = body_map
-    if body is None:
-        body = StaticMap.build((s for f in frames for s in base_scans(f)), max_free_range=0.0)
-    use_body = body.n_scans >= _BODY_MIN_SCANS
+    bodies = body_maps
+    if bodies is None:
+        n = max((len(f.origins) for f in frames), default=0)
+        bodies = [
+            StaticMap.build(
+                (list(base_scans(f))[k] for f in frames if len(f.origins) > k), max_free_range=0.0
+            )
+            for k in range(n)
+        ]
     det_static, pt_static = [], []
     for f in frames:
         base = f.points[:, :2].astype(np.float64)
         pts_world = f.world_pose.apply(base)  # NaN rows stay NaN
-        ps = smap.static_fraction(pts_world) >= _STATIC_OCCUPIED
-        if use_body:
-            ps |= body.hit_fraction(base) >= _BODY_HIT_SHARE
-        pt_static.append(ps)
+        # the robot's body: what a scanner hits in most of its own scans, in the base frame
+        body = np.zeros(len(base), bool)
+        for k, m in enumerate(bodies):
+            if m is not None and m.n_scans >= _BODY_MIN_SCANS:
+                sel = f.origin_of_point == k
+                body[sel] = m.hit_fraction(base[sel]) >= _BODY_HIT_SHARE
+        pt_static.append((smap.static_fraction(pts_world) >= _STATIC_OCCUPIED) | body)
         if f.laser is not None and len(f.laser.xy):
             ds = smap.is_static(f.laser, pts_world, occupied=_STATIC_OCCUPIED)
-            if use_body:
-                ds |= body.is_static(f.laser, base, occupied=_BODY_HIT_SHARE, of_all_scans=True)
+            if body.any() and f.laser.segments is not None:
+                ds |= np.array([len(g) > 0 and float(np.mean(body[g])) >= 0.7 for g in f.laser.segments])
             det_static.append(ds)
         else:
             det_static.append(np.zeros(0 if f.laser is None else len(f.laser.xy), dtype=bool))
@@ -93,12 +101,12 @@ def fuse_all(
     options: LabelOptions,
     *,
     static_map: Any | None = None,
-    body_map: Any | None = None,
+    body_maps: list[Any] | None = None,
 ) -> list[FrameResult]:
     """Static filter + fusion of every frame (base frame); the maps as :func:`_static_masks`."""
     # camera-only runs use neither laser detections nor scan points: no map to build
     if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
-        det_static, pt_static = _static_masks(frames, static_map, body_map)
+        det_static, pt_static = _static_masks(frames, static_map, body_maps)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
         pt_static = [np.zeros(len(f.points), bool) for f in frames]
@@ -365,7 +373,7 @@ def label_recording(
         pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
         camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose, rig.camera.lens_offset)
     t1 = time.perf_counter()
-    fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_map=info["body_map"])
+    fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_maps=info["body_maps"])
     t2 = time.perf_counter()
     labels, fused = track_all(frames, fused, opts, has_camera=camera is not None)
     t3 = time.perf_counter()

@@ -162,8 +162,8 @@ def perceive(
 
     # the static-world map grows while the recording is read (this thread mostly waits for the images)
     static_map = StaticMapBuilder() if options.static_filter and options.sources != "camera" else None
-    # and a map of the scans in the base frame: what every scan hits there is the robot's own body
-    body_map = StaticMapBuilder(max_free_range=0.0) if static_map is not None else None
+    # and per scanner a map of its scans in the base frame: what most of them hit is the robot's own body
+    body_maps: list[Any] = []
     # odometry drift corrected by matching the scans (the static map and the tracker need a fixed world)
     # (every other frame with odometry: it is exact over a tenth of a second; ~2.5 ms per frame)
     matcher = ScanOdometry(ScanMatchConfig(every=2)) if options.scan_matching and use_laser else None
@@ -242,12 +242,14 @@ def perceive(
                 )
                 t_match += time.perf_counter() - t3
                 t3 = time.perf_counter()
-            if static_map is not None and body_map is not None:
+            if static_map is not None:
                 for scan in odom_scans(pf):
                     static_map.add(*scan)
                 if pf.index % _BODY_EVERY == 0:  # the body is judged by a share of the scans: a sample does
-                    for scan in base_scans(pf):
-                        body_map.add(*scan)
+                    for k, scan in enumerate(base_scans(pf)):
+                        if k == len(body_maps):
+                            body_maps.append(StaticMapBuilder(max_free_range=0.0))
+                        body_maps[k].add(*scan)
                 t_map += time.perf_counter() - t3
             pending.append((frame, pf, job))
             hand_on(wait_for=2)
@@ -263,7 +265,7 @@ def perceive(
             "waiting_for_images": t_wait,
         },
         "static_map": static_map.finish() if static_map is not None and static_map.n_scans else None,
-        "body_map": body_map.finish() if body_map is not None and body_map.n_scans else None,
+        "body_maps": [b.finish() for b in body_maps] if static_map is not None else None,
         "scan_matching": None
         if matcher is None
         else {"matched": matcher.matched, "rejected": matcher.rejected, "skipped": matcher.skipped},

@@ -56,14 +56,9 @@ def _static_everywhere() -> StaticMap:
     return StaticMap(cell=0.05, origin=(-5.0, -5.0), hits=hits, free=np.zeros_like(hits), n_scans=50)
 
 
-def _body_none() -> StaticMap:
-    z = np.zeros((1, 1), np.int32)
-    return StaticMap(cell=0.05, origin=(0.0, 0.0), hits=z, free=z, n_scans=0)
-
-
 def test_a_box_vouches_for_a_static_laser_person_on_the_frames_around_it() -> None:
     frames = [_frame(k, with_image=k % 2 == 0) for k in range(6)]
-    out = fuse_all(frames, CAMERA, LabelOptions(), static_map=_static_everywhere(), body_map=_body_none())
+    out = fuse_all(frames, CAMERA, LabelOptions(), static_map=_static_everywhere(), body_maps=[])
     assert [f.index for f in out] == list(range(6))  # in order, although image frames go first
     for f in out:
         near_person = np.hypot(*(f.observations.xy - PERSON).T) < 0.3
@@ -76,7 +71,7 @@ def test_a_box_vouches_for_a_static_laser_person_on_the_frames_around_it() -> No
 
 def test_without_a_box_nearby_in_time_static_detections_are_dropped() -> None:
     frames = [_frame(0, with_image=True)] + [_frame(k, with_image=False) for k in range(1, 12)]
-    out = fuse_all(frames, CAMERA, LabelOptions(), static_map=_static_everywhere(), body_map=_body_none())
+    out = fuse_all(frames, CAMERA, LabelOptions(), static_map=_static_everywhere(), body_maps=[])
     kept = [bool((np.hypot(*(f.observations.xy - PERSON).T) < 0.3).any()) for f in out]
     # 0.5 s at 10 Hz: frames 1–5 are vouched for by the box of frame 0, the later ones are not
     assert kept == [True] * 6 + [False] * 6

@@ -149,7 +149,6 @@ class StaticMap:
         occupied: float = 0.7,
         min_share: float = 0.7,
         min_observations: int = 5,
-        of_all_scans: bool = False,
     ) -> NDArray[np.bool_]:
         """Which detections lie on static structure.
 
@@ -162,25 +161,17 @@ class StaticMap:
             min_share: a detection is static when at least this share of its segment points is on static
                 cells.
             min_observations: see :meth:`static_fraction`.
-            of_all_scans: judge cells by :meth:`hit_fraction` (the share of all scans that hit them)
-                instead of the occupied fraction (a base-frame map of the robot's body).
 
         Returns:
             ``(N,)`` bool.
         """
-
-        def fraction(p: FloatArray) -> FloatArray:
-            if of_all_scans:
-                return self.hit_fraction(p)
-            return self.static_fraction(p, min_observations=min_observations)
-
         n = len(detections)
         out = np.zeros(n, dtype=bool)
         if n == 0:
             return out
         if points is not None and detections.segments is not None:
             pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-            frac = fraction(pts)
+            frac = self.static_fraction(pts, min_observations=min_observations)
             for i, seg in enumerate(detections.segments):
                 seg = seg[np.all(np.isfinite(pts[seg]), axis=1)]
                 if seg.size:
@@ -191,7 +182,7 @@ class StaticMap:
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         if p.shape[0] != n:
             raise ValueError(f"xy must have shape ({n}, 2), got {p.shape}")
-        return fraction(p) >= occupied
+        return self.static_fraction(p, min_observations=min_observations) >= occupied
 
     def filter(
         self,

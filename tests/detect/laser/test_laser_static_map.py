@@ -104,9 +104,6 @@ def test_body_map_of_hits_alone_judges_by_the_share_of_all_scans():
     assert body.hit_fraction(walk)[0] < 0.2
     assert body.hit_fraction(wall)[0] < 0.2
     assert body.hit_fraction(np.array([[np.nan, 0.0]]))[0] == 0.0
-    xy = np.concatenate([post, walk])
-    dets = LaserDetections(xy, np.full(2, 0.9), np.full(2, KIND_BLOB), np.full(2, 0.1))
-    assert body.is_static(dets, xy=xy, occupied=0.8, of_all_scans=True).tolist() == [True, False]
 
 
 def test_empty_and_bad_cell():
