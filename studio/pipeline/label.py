@@ -32,8 +32,9 @@ __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
 
 FloatArray = NDArray[np.float64]
 _STATIC_OCCUPIED = 0.7  # a cell is structure when it was hit in this share of the scans that saw it
-_BODY_HIT_SHARE = 0.8  # a base-frame cell hit by this share of all scans is the robot's own body ...
-_BODY_MIN_SCANS = 20  # ... judged once there are this many scans
+_BODY_HIT_SHARE = 0.8  # a base-frame cell hit by this share of one scanner's scans is the robot's body ...
+_BODY_MIN_SCANS = 20  # ... judged once that scanner has this many scans in its map
+_SEGMENT_SHARE = 0.7  # a detection is on structure / the body when this share of its points is
 _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
 
 
@@ -81,14 +82,15 @@ def _static_masks(
         # the robot's body: what a scanner hits in most of its own scans, in the base frame
         body = np.zeros(len(base), bool)
         for k, m in enumerate(bodies):
-            if m is not None and m.n_scans >= _BODY_MIN_SCANS:
+            if m.n_scans >= _BODY_MIN_SCANS:
                 sel = f.origin_of_point == k
                 body[sel] = m.hit_fraction(base[sel]) >= _BODY_HIT_SHARE
         pt_static.append((smap.static_fraction(pts_world) >= _STATIC_OCCUPIED) | body)
         if f.laser is not None and len(f.laser.xy):
-            ds = smap.is_static(f.laser, pts_world, occupied=_STATIC_OCCUPIED)
+            ds = smap.is_static(f.laser, pts_world, occupied=_STATIC_OCCUPIED, min_share=_SEGMENT_SHARE)
             if body.any() and f.laser.segments is not None:
-                ds |= np.array([len(g) > 0 and float(np.mean(body[g])) >= 0.7 for g in f.laser.segments])
+                on_body = [len(g) > 0 and float(np.mean(body[g])) >= _SEGMENT_SHARE for g in f.laser.segments]
+                ds |= np.array(on_body)
             det_static.append(ds)
         else:
             det_static.append(np.zeros(0 if f.laser is None else len(f.laser.xy), dtype=bool))
