@@ -37,7 +37,7 @@ from studio.io import load_rig
 from studio.labels import LabelSet, read_labels
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, perceive, track_all
-from studio.pipeline.perceive import off_people
+from studio.pipeline.perceive import detect_again, off_people
 
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
@@ -73,23 +73,12 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
 def laser_again(frames: list[Any]) -> list[Any]:
     """Pass one with the current classical laser detector run again on each frame's stored scans."""
     from studio.detect.laser import get_laser_detector
-    from studio.detect.laser.base import merge_detections
 
     detector = get_laser_detector("classical")
     out = []
     for f in frames:
-        parts, offsets, off = [], [], 0
-        for k in range(len(f.origins)):
-            sel = np.flatnonzero(f.origin_of_point == k)
-            pts = f.points[sel, :2].astype(np.float64)
-            valid = np.isfinite(pts[:, 0])
-            parts.append(detector.detect(np.nan_to_num(pts), valid=valid, origin=f.origins[k]))
-            offsets.append(off)
-            off += len(sel)
-        laser = merge_detections(parts, offsets=offsets)
-        segs = laser.segments if laser.segments is not None else [np.zeros(0, np.int64)] * len(laser.xy)
-        z = np.array([float(np.nanmedian(f.points[s, 2])) if len(s) else np.nan for s in segs])
-        out.append(replace(f, laser=laser, laser_z=np.nan_to_num(z, nan=float(np.nanmean(f.points[:, 2])))))
+        laser, z = detect_again(f, detector)
+        out.append(replace(f, laser=laser, laser_z=z))
     return out
 
 

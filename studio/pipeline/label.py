@@ -19,13 +19,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from studio.detect.laser.base import KIND_PAIR
 from studio.errors import StudioError
 from studio.fuse.base import PersonObservations
 from studio.fuse.fusion import fuse_frame
 from studio.geometry import EquirectCamera
 from studio.labels.base import LabelFrame, LabelPerson, as_box
 from studio.pipeline.base import FrameResult, LabelOptions
-from studio.pipeline.perceive import PerceptionFrame, base_scans, odom_scans, perceive
+from studio.pipeline.perceive import PerceptionFrame, base_scans, detect_again, odom_scans, perceive
 from studio.track.appearance import APPEARANCE_DIM
 
 __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
@@ -36,6 +37,8 @@ _BODY_HIT_SHARE = 0.8  # a base-frame cell hit by this share of one scanner's sc
 _BODY_MIN_SCANS = 20  # ... judged once that scanner has this many scans in its map
 _SEGMENT_SHARE = 0.7  # a detection is on structure / the body when this share of its points is
 _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
+_PAIR_ON_STRUCTURE, _PAIR_SPREAD = 0.2, 0.35  # a leg pair with this share of its points on structure, ...
+# ... that far (m) from its other points, paired a leg with a chair leg or a corner
 
 
 @dataclass
@@ -118,10 +121,31 @@ def fuse_all(
     out: list[FrameResult | None] = [None] * len(frames)
     vouch_ns: list[int] = []
     vouch_xy: list[FloatArray] = []
+    detector = None
     for i in sorted(range(len(frames)), key=lambda k: frames[k].image is None):
         f, ds, ps = frames[i], det_static[i], pt_static[i]
         laser = f.laser
         laser_z: FloatArray = f.laser_z
+        # A leg paired with a chair leg or a wall corner sits between the two: the laser detector runs
+        # again on that frame without those structure points (only theirs: a still person stays).
+        if laser is not None and laser.segments is not None and ps.any():
+            mixed = [
+                k
+                for k, g in enumerate(laser.segments)
+                if laser.kind[k] == KIND_PAIR and not ds[k] and _leg_on_structure(f.points[g, :2], ps[g])
+            ]
+            if mixed:
+                if detector is None:
+                    from studio.detect.laser import get_laser_detector
+
+                    detector = get_laser_detector(options.laser_detector or "classical")
+                drop = np.zeros(len(ps), bool)
+                for k in mixed:
+                    g = laser.segments[k]
+                    drop[g] = ps[g]
+                laser, laser_z = detect_again(f, detector, drop)
+                segs = laser.segments or ()
+                ds = np.array([len(g) > 0 and float(ps[g].mean()) >= _SEGMENT_SHARE for g in segs], bool)
         if laser is not None and ds.any() and f.image is None:
             keep = ~ds | _vouched(f, laser.xy, vouch_ns, vouch_xy)
             laser = laser.select(np.flatnonzero(keep))
@@ -152,6 +176,15 @@ def fuse_all(
             f.track_pose,
         )
     return [r for r in out if r is not None]
+
+
+def _leg_on_structure(points: NDArray[np.float32], static: NDArray[np.bool_]) -> bool:
+    """Whether a leg pair's points (``(K, 2)``, which of them lie on structure) are a leg and a piece of
+    structure: a share of them on structure, away from the rest by more than a stance."""
+    if not len(static) or static.mean() < _PAIR_ON_STRUCTURE or static.all():
+        return False
+    sep = np.hypot(*(points[static].mean(axis=0) - points[~static].mean(axis=0)))
+    return bool(sep >= _PAIR_SPREAD)
 
 
 def _vouched(

@@ -29,6 +29,7 @@ __all__ = [
     "NoLaserDetector",
     "PerceptionFrame",
     "base_scans",
+    "detect_again",
     "laser_in_base",
     "odom_scans",
     "off_people",
@@ -113,6 +114,35 @@ def laser_in_base(
     else:
         laser_z = np.full(len(merged.xy), float(np.mean(z_all)) if len(z_all) else 0.0)
     return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def detect_again(
+    f: PerceptionFrame, detector: Any, drop: NDArray[np.bool_] | None = None
+) -> tuple[LaserDetections, FloatArray]:
+    """Run ``detector`` again on the frame's stored scans, without the points ``drop`` marks.
+
+    Each scan goes to the detector in the base frame's orientation with its scanner at the origin (what
+    the classical detector needs; a detector that reads beam order and ranges sees the same scan).
+
+    Returns:
+        The merged detections (segments index ``f.points``) and each one's scan-plane height, as
+        :func:`laser_in_base`.
+    """
+    parts, offsets = [], []
+    for k, origin in enumerate(f.origins):
+        sel = np.flatnonzero(f.origin_of_point == k)
+        pts = f.points[sel, :2].astype(np.float64) - origin
+        valid = np.isfinite(pts[:, 0])
+        if drop is not None:
+            valid &= ~drop[sel]
+        det = detector.detect(np.where(valid[:, None], np.nan_to_num(pts), np.nan), valid=valid)
+        parts.append(det.transformed(np.array([[1.0, 0.0, origin[0]], [0.0, 1.0, origin[1]], [0, 0, 1]])))
+        offsets.append(int(sel[0]) if len(sel) else 0)
+    merged = merge_detections(parts, offsets=offsets) if parts else LaserDetections.empty(with_segments=True)
+    segs = merged.segments if merged.segments is not None else [np.zeros(0, np.int64)] * len(merged.xy)
+    mean_z = float(np.nanmean(f.points[:, 2])) if np.isfinite(f.points[:, 2]).any() else 0.0
+    z = np.array([float(np.nanmedian(f.points[s, 2])) if len(s) else mean_z for s in segs])
+    return merged, np.nan_to_num(z, nan=mean_z)
 
 
 def perceive(
