@@ -144,8 +144,12 @@ def fuse_all(
                     g = laser.segments[k]
                     drop[g] = ps[g]
                 laser, laser_z = detect_again(f, detector, drop)
-                segs = laser.segments or ()
-                ds = np.array([len(g) > 0 and float(ps[g].mean()) >= _SEGMENT_SHARE for g in segs], bool)
+                segs = laser.segments
+                ds = (
+                    np.array([len(g) > 0 and float(ps[g].mean()) >= _SEGMENT_SHARE for g in segs], bool)
+                    if segs is not None
+                    else np.zeros(len(laser.xy), bool)
+                )
         if laser is not None and ds.any() and f.image is None:
             keep = ~ds | _vouched(f, laser.xy, vouch_ns, vouch_xy)
             laser = laser.select(np.flatnonzero(keep))
