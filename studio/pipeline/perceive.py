@@ -105,15 +105,18 @@ def laser_in_base(
         )
     merged = merge_detections(parts, offsets=offsets)
     z_all = np.concatenate(zs)
-    # height of a merged detection: that of the scan whose points dominate its segment
     points = np.concatenate(pts_all)
-    if merged.segments is not None and len(points):
-        laser_z = np.array(
-            [float(np.nanmedian(points[s, 2])) if len(s) else float(np.mean(z_all)) for s in merged.segments]
-        )
-    else:
-        laser_z = np.full(len(merged.xy), float(np.mean(z_all)) if len(z_all) else 0.0)
+    laser_z = _heights(merged, points, float(np.mean(z_all)) if len(z_all) else 0.0)
     return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def _heights(merged: LaserDetections, points: NDArray[np.float32], fallback: float) -> FloatArray:
+    """Scan-plane height of each detection: that of the scan whose points dominate its segment
+    (``fallback`` without segments or points)."""
+    if merged.segments is None or not len(points):
+        return np.full(len(merged.xy), fallback)
+    z = np.array([float(np.nanmedian(points[s, 2])) if len(s) else fallback for s in merged.segments])
+    return np.nan_to_num(z, nan=fallback)
 
 
 def detect_again(
@@ -135,14 +138,12 @@ def detect_again(
         valid = np.isfinite(pts[:, 0])
         if drop is not None:
             valid &= ~drop[sel]
-        det = detector.detect(np.where(valid[:, None], np.nan_to_num(pts), np.nan), valid=valid)
+        det = detector.detect(np.where(valid[:, None], pts, np.nan), valid=valid)
         parts.append(det.transformed(np.array([[1.0, 0.0, origin[0]], [0.0, 1.0, origin[1]], [0, 0, 1]])))
         offsets.append(int(sel[0]) if len(sel) else 0)
     merged = merge_detections(parts, offsets=offsets) if parts else LaserDetections.empty(with_segments=True)
-    segs = merged.segments if merged.segments is not None else [np.zeros(0, np.int64)] * len(merged.xy)
     mean_z = float(np.nanmean(f.points[:, 2])) if np.isfinite(f.points[:, 2]).any() else 0.0
-    z = np.array([float(np.nanmedian(f.points[s, 2])) if len(s) else mean_z for s in segs])
-    return merged, np.nan_to_num(z, nan=mean_z)
+    return merged, _heights(merged, f.points, mean_z)
 
 
 def perceive(
