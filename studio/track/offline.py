@@ -9,6 +9,8 @@
    and RTS-smoothed on their own and then **stitched** across gaps (:mod:`studio.track.stitch`: motion +
    appearance, solved globally); a continuation takes the id of the tracklet it continues, and one that
    started before the tracklet it continues ended (its tail had left the person) replaces that tail.
+   Where two stitched tracks come close, the detections they held there are distributed between them
+   again by their motion through and after the encounter (:mod:`studio.track.encounters`).
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
 4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped
@@ -26,6 +28,7 @@ from numpy.typing import NDArray
 
 from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
+from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
 from studio.track.swaps import SwapConfig, repair_swaps
@@ -46,6 +49,8 @@ class OfflineConfig:
         stitch: stitching options, or None to skip stitching.
         swaps: options of the identity-swap repair between tracklets that came close
             (:mod:`studio.track.swaps`), or None to skip it.
+        encounters: options of the re-decision of encounters between stitched tracks by their motion
+            (:mod:`studio.track.encounters`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
         interpolate_max_gap_s: gaps in a track up to this long (between the observations around them) get
             interpolated positions; longer gaps stay empty, seconds.
@@ -62,6 +67,7 @@ class OfflineConfig:
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
     stitch: StitchConfig | None = field(default_factory=StitchConfig)
     swaps: SwapConfig | None = field(default_factory=SwapConfig)
+    encounters: EncounterConfig | None = field(default_factory=EncounterConfig)
     smooth: bool = True
     interpolate_max_gap_s: float = 1.0
     split_gap_s: float = 0.5
@@ -231,6 +237,15 @@ def track_offline(
     for tid, h in sorted(tracklets.items(), key=lambda kv: kv[1][0][0]):
         chain = merged.setdefault(root[tid], [])
         chain[:] = [x for x in chain if x[0] < h[0][0]] + h
+    if cfg.encounters is not None and len(merged) > 1:
+
+        def estimate(h: _Hits) -> tuple[FloatArray, FloatArray, FloatArray]:
+            run, x, _ = _estimate(obs, h, cfg, cache)
+            return run.x, run.P, x
+
+        merged, _ = reassign_encounters(
+            obs, merged, estimate, accel_sigma=cfg.tracker.accel_sigma, config=cfg.encounters
+        )
     kept = []
     for tid, h in merged.items():
         h.sort()

@@ -1,0 +1,135 @@
+"""Encounter re-decision: two tracks that took each other's detections for a moment get them back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studio.track import Observations
+from studio.track.encounters import EncounterConfig, reassign_encounters
+from studio.track.smooth import filter_track, rts_smooth
+
+T0 = 1_700_000_000_000_000_000
+ACCEL = 0.65
+
+
+def _frames(paths, sigma=0.03, seed=0):
+    """One frame per row of ``paths`` ``(n_frames, n_people, 2)`` at 10 Hz; row k of a frame is person k,
+    observed with ``sigma`` noise (NaN people are left out)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i, xy in enumerate(paths):
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        n = len(xy)
+        out.append(
+            Observations(
+                T0 + i * 100_000_000,
+                xy + rng.normal(0.0, sigma, xy.shape),
+                np.tile(np.eye(2) * 0.05**2, (n, 1, 1)),
+                ("laser",) * n,
+                np.ones(n),
+                None,
+                np.arange(n),
+            )
+        )
+    return out
+
+
+def _estimator(obs):
+    def estimate(hits):
+        first, last = hits[0][0], hits[-1][0]
+        z = np.full((last - first + 1, 2), np.nan)
+        R = np.tile(np.eye(2), (last - first + 1, 1, 1))
+        for i, r in hits:
+            z[i - first], R[i - first] = obs[i].xy[r], obs[i].cov[r]
+        stamps = np.array([obs[i].stamp_ns for i in range(first, last + 1)], dtype=np.int64)
+        run = filter_track(stamps, z, R, accel_sigma=ACCEL, init_speed_sigma=1.5)
+        return run.x, run.P, rts_smooth(run)[0]
+
+    return estimate
+
+
+def _passing(n=60):
+    """P walks +x along y = +0.2 at 1 m/s, Q walks -x along y = -0.2: they pass 0.4 m apart at frame 30."""
+    t = np.arange(n) * 0.1
+    p = np.c_[-3.0 + t, np.full(n, 0.2)]
+    q = np.c_[3.0 - t, np.full(n, -0.2)]
+    return np.stack([p, q], axis=1)
+
+
+def _rows(hits):
+    return [r for _, r in hits]
+
+
+def _run(obs, tracks, **kw):
+    return reassign_encounters(obs, tracks, _estimator(obs), accel_sigma=ACCEL, config=EncounterConfig(**kw))
+
+
+def test_a_swap_and_back_inside_an_encounter_is_undone():
+    obs = _frames(_passing())
+    wrong = set(range(27, 33))  # the online tracker gave each track the other's detection here
+    tracks = {
+        4: [(i, 1 if i in wrong else 0) for i in range(60)],
+        8: [(i, 0 if i in wrong else 1) for i in range(60)],
+    }
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    assert _rows(fixed[4]) == [0] * 60
+    assert _rows(fixed[8]) == [1] * 60
+    assert tracks[4][30] == (30, 1)  # the input is not modified
+
+
+def test_right_assignments_are_left_alone():
+    obs = _frames(_passing())
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60)]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
+
+
+def test_a_detection_between_both_goes_to_the_track_it_fits():
+    paths = _passing()
+    paths[28:31, 1] = np.nan  # Q unseen for 0.3 s: P's track kept its own detection ...
+    obs = _frames(paths)
+    # ... but Q's track, coasting, took P's detection right after and P's track took Q's
+    wrong = set(range(31, 35))
+    tracks = {
+        4: [(i, 1 if i in wrong else 0) for i in range(60)],
+        8: [(i, 0 if i in wrong else 1) for i in range(60) if not 28 <= i <= 30],
+    }
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    assert _rows(fixed[4]) == [0] * 60
+    assert _rows(fixed[8]) == [1] * 57
+
+
+def test_people_on_one_spot_are_left_to_the_colours():
+    """Two people standing on the same spot: no assignment explains the motion better, none is changed."""
+    n = 40
+    paths = np.stack([np.tile([[2.0, 0.0]], (n, 1)), np.tile([[2.0, 0.02]], (n, 1))], axis=1)
+    obs = _frames(paths)
+    wrong = set(range(15, 22))
+    tracks = {
+        1: [(i, 1 if i in wrong else 0) for i in range(n)],
+        2: [(i, 0 if i in wrong else 1) for i in range(n)],
+    }
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
+
+
+def test_far_apart_tracks_are_not_an_encounter():
+    paths = _passing()
+    paths[:, 1, 1] = -3.0  # Q passes 3.2 m away
+    obs = _frames(paths)
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60)]}
+    tracks[4][30], tracks[8][30] = (30, 1), (30, 0)  # a wrong pair of hits far apart: not ours to judge
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+
+
+def test_config_is_checked():
+    with pytest.raises(ValueError):
+        EncounterConfig(close_m=0.0)
+    with pytest.raises(ValueError):
+        EncounterConfig(beam=0)
