@@ -165,8 +165,8 @@ def reassign_encounters(
     smoothed = {tid: estimate(h)[2] for tid, h in tracks.items()}
     for a, b, f0, f1 in _windows(tracks, smoothed, cfg):
         ha, hb = tracks[a], tracks[b]
-        if not (ha[0][0] < f0 and hb[0][0] < f0):
-            continue  # an earlier re-decision moved a track's start
+        if not all(h[0][0] < f0 <= h[-1][0] + 1 for h in (ha, hb)):
+            continue  # an earlier re-decision moved a track's start or end past the encounter
         inside = [[k for k in h if f0 <= k[0] <= f1] for h in (ha, hb)]
         if not inside[0] and not inside[1]:
             continue

@@ -126,10 +126,23 @@ def test_far_apart_tracks_are_not_an_encounter():
     tracks[4][30], tracks[8][30] = (30, 1), (30, 0)  # a wrong pair of hits far apart: not ours to judge
     fixed, changed = _run(obs, tracks)
     assert changed == 0
+    assert fixed == tracks
 
 
 def test_config_is_checked():
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="close_m and beam must be positive"):
         EncounterConfig(close_m=0.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="close_m and beam must be positive"):
         EncounterConfig(beam=0)
+
+
+def test_an_encounter_past_a_track_shortened_by_an_earlier_one_is_skipped(monkeypatch):
+    """Encounters are listed once; re-deciding one can end a track before the next one starts."""
+    import studio.track.encounters as enc
+
+    obs = _frames(_passing())
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(20)]}
+    monkeypatch.setattr(enc, "_windows", lambda *_: [(4, 8, 40, 50)])
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
