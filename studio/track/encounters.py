@@ -194,9 +194,9 @@ def reassign_encounters(
             continue
         moved: list[Hits] = [[], []]
         for opt in choice[: f1 - f0 + 1]:
-            for t in (0, 1):
-                if opt[t] is not None:
-                    moved[t].append(opt[t])  # type: ignore[arg-type]
+            for t, hit in enumerate(opt):
+                if hit is not None:
+                    moved[t].append(hit)
         tracks[a] = sorted([k for k in ha if not f0 <= k[0] <= f1] + moved[0])
         tracks[b] = sorted([k for k in hb if not f0 <= k[0] <= f1] + moved[1])
         changed += 1
