@@ -4,6 +4,7 @@
     .venv/bin/python bench/replay_tracking.py --scenario static --seeds 1 --switches
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 --image-period 0.3
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again
+    .venv/bin/python bench/replay_tracking.py --scenario rooms --seeds 1 --laser-again --laser-only
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs
 once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a
@@ -13,8 +14,9 @@ lists every identity switch (frame, ground-truth id, range from the robot, dista
 person, the track ids before and after). ``--image-period`` emulates another image detector period from a
 pass one that ran the detector on every frame (stored separately). ``--laser-again`` runs the current
 laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
-in the last digits): a laser detector change measured in a minute instead of a new pass one. The
-recordings are those of ``bench/run_table.py``.
+in the last digits): a laser detector change measured in a minute instead of a new pass one.
+``--laser-only`` drops the stored image detections and labels as ``studio label --sources laser`` (the
+path of a rig without a camera). The recordings are those of ``bench/run_table.py``.
 """
 
 from __future__ import annotations
@@ -132,6 +134,9 @@ def main() -> None:
     ap.add_argument(
         "--laser-again", action="store_true", help="run the laser detector again on the stored scans"
     )
+    ap.add_argument(
+        "--laser-only", action="store_true", help="without the image detections, as --sources laser"
+    )
     args = ap.parse_args()
     options = LabelOptions()
     for seed in args.seeds:
@@ -144,11 +149,15 @@ def main() -> None:
             options = replace(options, image_period_s=args.image_period)
         if args.laser_again:
             frames = laser_again(frames)
+        run_options = options
+        if args.laser_only:
+            frames = [replace(f, image=None, appearance=None) for f in frames]
+            cam, run_options = None, replace(options, sources="laser")
         gt = read_labels(rec / "ground_truth.jsonl")
         t = time.perf_counter()
-        fused = fuse_all(frames, cam, options)
+        fused = fuse_all(frames, cam, run_options)
         t_fuse = time.perf_counter() - t
-        labels, _ = track_all(frames, fused, options, has_camera=cam is not None)
+        labels, _ = track_all(frames, fused, run_options, has_camera=cam is not None)
         t_track = time.perf_counter() - t - t_fuse
         ev = evaluate(LabelSet.from_frames(labels), gt)
         m = ev.metrics()

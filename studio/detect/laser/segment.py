@@ -38,9 +38,9 @@ FEATURE_NAMES = (
     "occlusion_max",  # max over both ends of the same, m
     "coverage",  # valid returns / beams spanned by the segment (missing returns lower it)
     "extent",  # max distance of a return from the centroid, m
-    "jaggedness",  # boundary length (sum of steps between returns) / width
+    "jaggedness",  # outline length (sum of steps along the outline averaged over ~3 cm) / width
     "incidence",  # |cos| of the angle between the segment's main axis and the beam: 1 = seen edge-on
-    "turning",  # mean absolute turning angle between consecutive steps, rad
+    "turning",  # mean absolute turning angle between consecutive steps of that outline, rad
     "turning_signed",  # mean signed turning angle, rad, positive when convex toward the sensor
 )
 
@@ -148,6 +148,25 @@ _MAX_RADIUS = 2.0
 _NEIGHBOUR_GAP = float(np.radians(3.0))
 
 
+_OUTLINE_SCALE = 0.03
+
+
+def _outline(q: FloatArray, starts: IntArray, lens: IntArray, width: FloatArray) -> FloatArray:
+    """Each return replaced by the mean of the returns of its segment within a window of at most
+    ``_OUTLINE_SCALE`` (``2h + 1`` returns, ``h`` from the segment's mean spacing; 1 return, so unchanged,
+    where returns are more than a third of that apart)."""
+    spacing = width / np.maximum(lens - 1, 1)
+    h = np.floor(0.5 * (_OUTLINE_SCALE / np.maximum(spacing, 1e-6) - 1.0)).clip(0, None).astype(np.int64)
+    if not h.any():
+        return q
+    seg_of = np.repeat(np.arange(len(lens)), lens)
+    k = np.arange(len(q))
+    lo = np.maximum(k - h[seg_of], starts[seg_of])
+    hi = np.minimum(k + h[seg_of], (starts + lens - 1)[seg_of])
+    cs = np.concatenate([np.zeros((1, 2)), np.cumsum(q, axis=0)])
+    return (cs[hi + 1] - cs[lo]) / (hi - lo + 1)[:, None]
+
+
 def segment_features(
     points: FloatArray,
     segments: list[IntArray],
@@ -238,8 +257,10 @@ def segment_features(
     out[:, 8] = occ.max(1)
     out[:, 9] = np.minimum(n / span, 1.0)
     out[:, 10] = extent
-    # boundary: steps between consecutive returns of a segment (the last step of each segment is unused)
-    step = np.diff(q, axis=0, append=q[-1:])
+    # boundary: steps between consecutive returns of a segment (the last step of each segment is unused),
+    # along the outline averaged over ~``_OUTLINE_SCALE`` so range noise on dense returns (a leg near the
+    # scanner) does not read as a jagged surface
+    step = np.diff(_outline(q, starts, lens, width), axis=0, append=q[-1:])
     last_of = starts + lens - 1
     step[last_of] = 0.0
     step_len = np.hypot(step[:, 0], step[:, 1])

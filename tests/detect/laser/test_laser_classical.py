@@ -106,6 +106,25 @@ def test_leg_position_is_the_leg_axis_not_the_lit_surface(rng):
     assert err < 0.5 * np.hypot(surface[0] - rng, surface[1] - 0.3)
 
 
+@pytest.mark.parametrize("dist", [0.7, 1.2, 1.8])
+def test_noisy_legs_near_the_scanner_stay_legs(dist):
+    """Two legs 0.7–1.8 m away seen by a 0.25° scanner with 12 mm range noise (common 2D lidars): the dense
+    returns zigzag by more than their spacing. Before the outline was averaged for the jaggedness and
+    turning features, the leg model called such legs clutter (simulated people within 1.5 m: 9–17 % found)."""
+    rng = np.random.default_rng(int(dist * 10))
+    found = []
+    for _ in range(20):
+        pts, valid = cast(circles=[(dist, 0.1, 0.06), (dist, -0.1, 0.06)], walls=[(6.0, -5.0, 6.0, 5.0)],
+                          step_deg=0.25)  # fmt: skip
+        r = np.hypot(pts[:, 0], pts[:, 1])
+        with np.errstate(invalid="ignore"):
+            pts = pts * ((r + rng.normal(0.0, 0.012, len(r))) / r)[:, None]
+        people = ClassicalLaserDetector().detect(pts, valid=valid)
+        d = np.hypot(people.xy[:, 0] - dist - 0.04, people.xy[:, 1]) if len(people) else np.array([9.0])
+        found.append(bool(np.any((d < 0.15) & (people.scores >= 0.3))))
+    assert np.mean(found) >= 0.9
+
+
 def test_people_without_segments():
     legs = _legs([[2.0, 0.15], [2.0, -0.15]], [0.8, 0.7])
     people = ClassicalLaserDetector().people(LaserDetections(legs.xy, legs.scores, legs.kind, legs.radius))

@@ -93,3 +93,24 @@ def test_features_circle_and_line():
     assert fw[F["circle_radius"]] == pytest.approx(2.0)  # a line: radius capped
     assert abs(fw[F["bulge"]]) < 1e-9
     assert fw[F["coverage"]] == 1.0
+
+
+def test_outline_is_averaged_only_where_returns_are_dense():
+    """Jaggedness and turning read the outline averaged over ~3 cm: range noise on returns a few mm apart
+    (a leg near the scanner) is not a jagged surface, while a segment with sparse returns is unchanged."""
+    rng = np.random.default_rng(3)
+
+    def leg(dist: float, n: int, noise: float) -> np.ndarray:
+        ang = np.linspace(np.pi / 2 + 0.3, 3 * np.pi / 2 - 0.3, n)
+        pts = np.stack([dist + 0.06 * np.cos(ang), 0.06 * np.sin(ang)], 1)
+        r = np.hypot(*pts.T)
+        return pts * ((r + rng.normal(0.0, noise, n)) / r)[:, None]
+
+    dense = leg(0.7, 36, 0.012)  # ~3 mm apart under 12 mm of noise
+    f = segment_features(dense, [np.arange(36)])[0]
+    assert f[F["jaggedness"]] < 2.0  # the raw returns zigzag: their path is > 4× the width
+    raw = np.hypot(*np.diff(dense, axis=0).T).sum() / f[F["width"]]
+    assert raw > 3.0
+    sparse = leg(3.0, 6, 0.0)  # 2 cm apart: every return is its own outline point
+    g = segment_features(sparse, [np.arange(6)])[0]
+    assert g[F["jaggedness"]] == pytest.approx(np.hypot(*np.diff(sparse, axis=0).T).sum() / g[F["width"]])
