@@ -151,7 +151,9 @@ _NEIGHBOUR_GAP = float(np.radians(3.0))
 _OUTLINE_SCALE = 0.03
 
 
-def _outline(q: FloatArray, starts: IntArray, lens: IntArray, width: FloatArray) -> FloatArray:
+def _outline(
+    q: FloatArray, seg_of: IntArray, starts: IntArray, lens: IntArray, width: FloatArray
+) -> FloatArray:
     """Each return replaced by the mean of the returns of its segment within a window of at most
     ``_OUTLINE_SCALE`` (``2h + 1`` returns, ``h`` from the segment's mean spacing; 1 return, so unchanged,
     where returns are more than a third of that apart)."""
@@ -159,7 +161,6 @@ def _outline(q: FloatArray, starts: IntArray, lens: IntArray, width: FloatArray)
     h = np.floor(0.5 * (_OUTLINE_SCALE / np.maximum(spacing, 1e-6) - 1.0)).clip(0, None).astype(np.int64)
     if not h.any():
         return q
-    seg_of = np.repeat(np.arange(len(lens)), lens)
     k = np.arange(len(q))
     lo = np.maximum(k - h[seg_of], starts[seg_of])
     hi = np.minimum(k + h[seg_of], (starts + lens - 1)[seg_of])
@@ -260,7 +261,7 @@ def segment_features(
     # boundary: steps between consecutive returns of a segment (the last step of each segment is unused),
     # along the outline averaged over ~``_OUTLINE_SCALE`` so range noise on dense returns (a leg near the
     # scanner) does not read as a jagged surface
-    step = np.diff(_outline(q, starts, lens, width), axis=0, append=q[-1:])
+    step = np.diff(_outline(q, seg_of, starts, lens, width), axis=0, append=q[-1:])
     last_of = starts + lens - 1
     step[last_of] = 0.0
     step_len = np.hypot(step[:, 0], step[:, 1])
