@@ -97,6 +97,8 @@ class FrameResult:
         scan_points: ``(M, 3)`` valid scan points off static structure, base frame (None: no laser used).
         track_pose: T_world_base the tracker uses (the odometry corrected by scan matching), or None for
             ``robot_pose``.
+        legs: ``(N, 2, 2)`` base frame, the two legs of each observation made from a laser leg pair (NaN
+            rows for the others; observations appended later have none), or None.
     """
 
     index: int
@@ -105,6 +107,7 @@ class FrameResult:
     observations: PersonObservations
     scan_points: NDArray[np.float32] | None = None
     track_pose: Pose2 | None = None
+    legs: NDArray[np.float64] | None = None
 
     @property
     def world_pose(self) -> Pose2:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.detect.laser.base import KIND_PAIR
+from studio.detect.laser.base import KIND_PAIR, LaserDetections
 from studio.errors import StudioError
 from studio.fuse.base import PersonObservations
 from studio.fuse.fusion import fuse_frame
@@ -178,8 +178,20 @@ def fuse_all(
             obs,
             None if pts is None else pts.astype(np.float32),
             f.track_pose,
+            _pair_legs(obs, laser),
         )
     return [r for r in out if r is not None]
+
+
+def _pair_legs(obs: PersonObservations, laser: LaserDetections | None) -> FloatArray | None:
+    """Per observation the two legs of the laser leg pair it was made from (NaN rows for the others)."""
+    if laser is None or laser.legs is None:
+        return None
+    out = np.full((len(obs), 2, 2), np.nan)
+    li = obs.laser_index
+    has = (li >= 0) & (np.asarray(obs.source) != "image")
+    out[has] = laser.legs[li[has]]
+    return out
 
 
 def _leg_on_structure(points: NDArray[np.float32], static: NDArray[np.bool_]) -> bool:
@@ -252,21 +264,34 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     return out
 
 
-def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None) -> Any:
+def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma: float) -> Any:
+    """The frame's observations in the tracking frame; each leg pair's two legs follow as alternative
+    rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their ``det_index`` after the observations'."""
     from studio.track.base import Observations
 
     obs = fr.observations
+    n = len(obs)
+    legs = np.full((n, 2, 2), np.nan)
+    if fr.legs is not None:
+        legs[: len(fr.legs)] = fr.legs[:n]
+    pairs = np.flatnonzero(np.isfinite(legs).all(axis=(1, 2)))
     pose = fr.world_pose
     R = pose.matrix()[:2, :2]
-    xy = pose.apply(obs.xy) if len(obs) else np.zeros((0, 2))
-    cov = R @ obs.cov @ R.T if len(obs) else np.zeros((0, 2, 2))
+    xy = np.concatenate([obs.xy.reshape(-1, 2), legs[pairs].reshape(-1, 2)])
+    xy = pose.apply(xy) if len(xy) else np.zeros((0, 2))
+    cov = np.concatenate([R @ obs.cov @ R.T, np.repeat((leg_sigma**2 * np.eye(2))[None], 2 * len(pairs), 0)])
+    alt = np.r_[np.full(n, -1), np.repeat(pairs, 2)].astype(np.int64)
     app = None
     if appearance is not None:
-        app = np.full((len(obs), APPEARANCE_DIM), np.nan, np.float32)
+        app = np.full((len(xy), APPEARANCE_DIM), np.nan, np.float32)
         for k, bi in enumerate(obs.box_index):
             if bi >= 0 and bi < len(appearance):
                 app[k] = appearance[bi]
-    return Observations(fr.stamp_ns, xy, cov, obs.source, obs.score, app, np.arange(len(obs)))
+    source = obs.source + tuple(obs.source[k] for k in pairs for _ in range(2))
+    score = np.r_[obs.score, np.repeat(obs.score[pairs], 2)]
+    return Observations(
+        fr.stamp_ns, xy, cov, source, score, app, np.arange(len(xy)), alt if len(pairs) else None
+    )
 
 
 def tracking_config(options: LabelOptions, *, has_camera: bool) -> Any:
@@ -302,21 +327,22 @@ def track_all(
     from studio.track.offline import track_offline
 
     config = tracking_config(options, has_camera=has_camera)
-    observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
+    sigma = options.fusion.leg_sigma
+    observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
     result = track_offline(observations, config=config)
     if options.recover_radius > 0 and options.sources != "camera":
         fused = recover_missed(fused, result, options)
-        observations = [_to_odom(fr, pf.appearance) for fr, pf in zip(fused, frames, strict=True)]
+        observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
         result = track_offline(observations, config=config)
     # camera confirmation and minimum duration, per track
     camera_hits: dict[int, list[int]] = {}
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
-    for fr, tf in zip(fused, result.frames, strict=True):
+    for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
             if p.det_index >= 0:
-                src = fr.observations.source[p.det_index]
+                src = observations[fr_i].source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
                 if src in ("fused", "image"):
                     camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
@@ -342,7 +368,7 @@ def track_all(
         return any(abs(int(x) - stamp) <= window_ns for x in near)
 
     labels = []
-    for fr, tf in zip(fused, result.frames, strict=True):
+    for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         inv = fr.world_pose.inverse()
         R = inv.matrix()[:2, :2]
         people = []
@@ -352,9 +378,10 @@ def track_all(
             xb = inv.apply(p.xy)
             xo = fr.robot_pose.apply(xb)  # the outputs stay in the odometry frame
             cov = R @ p.cov @ R.T
-            o = fr.observations
-            j = p.det_index
-            box = as_box(o.box[j]) if j >= 0 else None
+            o, ob, k = fr.observations, observations[fr_i], p.det_index
+            # rows past the observations are legs of a pair split between two people: the pair's score,
+            # no box (it may have gone with the pair, but not to both)
+            j = int(ob.alt_of[k]) if k >= len(o) and ob.alt_of is not None else k
             people.append(
                 LabelPerson(
                     id=p.track_id,
@@ -363,8 +390,8 @@ def track_all(
                     x_odom=float(xo[0]),
                     y_odom=float(xo[1]),
                     cov=((cov[0, 0], cov[0, 1]), (cov[1, 0], cov[1, 1])),
-                    source=o.source[j] if j >= 0 else sources[p.track_id].most_common(1)[0][0],
-                    box=box,
+                    source=ob.source[k] if k >= 0 else sources[p.track_id].most_common(1)[0][0],
+                    box=as_box(o.box[k]) if 0 <= k < len(o) else None,
                     score=float(o.score[j]) if j >= 0 else None,
                     extra={"interpolated": True} if j < 0 else {},
                 )

@@ -61,6 +61,10 @@ class Observations:
             an all-NaN row means that observation has no descriptor (e.g. a laser-only person).
         det_index: (N,) int64 index of each observation among the frame's detections, so that tracker
             outputs can be joined back to boxes and labels.
+        alt_of: (N,) int64 or None. A row ``k`` with ``alt_of[k] = j ≥ 0`` is not an observation of its own
+            but one leg of the laser leg pair in row ``j`` (whose ``alt_of`` is -1): a tracker never gives it
+            out alone, only both legs of ``j`` to two tracks instead of ``j`` to one (two people close
+            enough for the laser to pair a leg of each). None: no such rows.
     """
 
     stamp_ns: int
@@ -70,6 +74,7 @@ class Observations:
     score: FloatArray
     appearance: NDArray[np.float32] | None
     det_index: NDArray[np.int64]
+    alt_of: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.stamp_ns, bool) or not isinstance(self.stamp_ns, int | np.integer):
@@ -103,6 +108,16 @@ class Observations:
         for name, value in (("xy", xy), ("cov", cov), ("score", score), ("det_index", det.astype(np.int64))):
             value.flags.writeable = False
             object.__setattr__(self, name, value)
+        if self.alt_of is not None:
+            alt = np.asarray(self.alt_of)
+            if alt.shape != (n,) or (n and not np.issubdtype(alt.dtype, np.integer)):
+                raise ValueError(f"alt_of must be ({n},) integers")
+            alt = alt.astype(np.int64)
+            parent = alt[alt >= 0]
+            if np.any(alt < -1) or np.any(parent >= n) or np.any(alt[parent] != -1):
+                raise ValueError("alt_of must be -1 or the row of an observation that is not an alternative")
+            alt.flags.writeable = False
+            object.__setattr__(self, "alt_of", alt)
         if app is not None:
             app.flags.writeable = False
         object.__setattr__(self, "appearance", app)

@@ -60,6 +60,14 @@ class UkfTrackerConfig:
             offline stitcher compares medians over many observations).
         appearance_weight: added cost per unit of colour difference (0: appearance does not count).
         appearance_momentum: a track's descriptor is ``m·old + (1 − m)·new`` after each hit.
+        split_pair_separation_m: where a laser leg pair went to a confirmed track and another confirmed
+            track at least this far from it (predicted positions, metres) is left without an observation,
+            the two legs go one to each when both fit (see ``Observations.alt_of``): two people so close
+            that the laser paired a leg of each. None: pairs are never split.
+        split_pair_max_relative_speed: ... and only when the two tracks move alike (m/s): people walking or
+            standing together, whose legs pair across frame after frame. Two people passing each other
+            pair across for a frame or two, and their motion carries them through better than legs that
+            could be either's.
         alpha, beta, kappa: scaled sigma-point parameters of the UKF.
     """
 
@@ -78,6 +86,8 @@ class UkfTrackerConfig:
     appearance_gate: float | None = None
     appearance_weight: float = 0.0
     appearance_momentum: float = 0.8
+    split_pair_separation_m: float | None = 0.25
+    split_pair_max_relative_speed: float = 0.6
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
@@ -163,6 +173,8 @@ class UkfTracker:
             self._predict(t, obs.stamp_ns)
 
         free = np.ones(len(obs), dtype=bool)
+        if obs.alt_of is not None:
+            free &= obs.alt_of < 0  # a pair's legs: only ever through _split_pairs
         groups = (
             [
                 [t for t in self._tracks if t.state != "tentative"],
@@ -185,6 +197,7 @@ class UkfTracker:
             for r, k in gnn_assign(cost, allowed):
                 matched[group[r].track_id] = int(cols[k])
                 free[cols[k]] = False
+            self._split_pairs([t for t in group if t.state != "tentative"], obs, matched)
 
         for t in list(self._tracks):
             row = matched.get(t.track_id)
@@ -207,6 +220,48 @@ class UkfTracker:
         t.det_index = -1
         sigmas_h = np.array([t.ukf.hx(s) for s in t.ukf.sigmas_f])
         t.z_pred, t.Pz = unscented_transform(sigmas_h, t.ukf.Wm, t.ukf.Wc)
+
+    def _split_pairs(self, group: list[_Track], obs: Observations, matched: dict[int, int]) -> None:
+        """Give a leg pair's two legs to two established tracks instead of the pair to one (in place).
+
+        Only where the tracks are at least ``split_pair_separation_m`` apart, their velocities differ by at
+        most ``split_pair_max_relative_speed``, and each leg lies within ``split_pair_separation_m`` of its
+        track, nearer to it than to the other, inside both gates; of several such tracks the one whose
+        leg costs least.
+        """
+        sep = self.config.split_pair_separation_m
+        if obs.alt_of is None or sep is None:
+            return
+        idle = [t for t in group if t.track_id not in matched]
+        for a in group:
+            row = matched.get(a.track_id)
+            if row is None or not idle:
+                continue
+            legs = np.flatnonzero(obs.alt_of == row)
+            if len(legs) != 2:
+                continue
+            best: tuple[float, _Track, int, int] | None = None
+            for b in idle:
+                if np.hypot(*(a.z_pred - b.z_pred)) < sep:
+                    continue
+                if np.hypot(*(a.ukf.x[2:4] - b.ukf.x[2:4])) > self.config.split_pair_max_relative_speed:
+                    continue  # passing each other: their motion carries them through a frame or two
+                zp, Pz = np.array([a.z_pred, b.z_pred]), np.array([a.Pz, b.Pz])
+                d = np.hypot(*(zp[:, None, :] - obs.xy[legs][None, :, :]).transpose(2, 0, 1))  # (track, leg)
+                d2, logdet = mahalanobis_costs(zp, Pz, obs.xy[legs], obs.cov[legs])
+                cost = d2 + logdet if self.config.use_logdet else d2
+                for la, lb in ((0, 1), (1, 0)):
+                    if max(d[0, la], d[1, lb]) > sep or d[0, la] > d[1, la] or d[1, lb] > d[0, lb]:
+                        continue
+                    if d2[0, la] > self._gate or d2[1, lb] > self._gate:
+                        continue
+                    c = cost[0, la] + cost[1, lb]
+                    if best is None or c < best[0]:
+                        best = (float(c), b, int(legs[la]), int(legs[lb]))
+            if best is not None:
+                _, b, la, lb = best
+                matched[a.track_id], matched[b.track_id] = la, lb
+                idle.remove(b)
 
     def _appearance_terms(
         self,

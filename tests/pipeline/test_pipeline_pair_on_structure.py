@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raycast import scan
 
 import studio.pipeline.label as label
 from studio.detect.laser import KIND_PAIR, get_laser_detector
@@ -20,23 +21,6 @@ STAND = np.array([2.06, 0.0])  # where the person stands at the end, near leg in
 N_WALK, N_STAND = 30, 6
 
 
-def _scan(circles: list[tuple[float, float, float]]) -> np.ndarray:
-    """``(720, 3)`` float32 beams of a scanner at the origin (0.5° apart), z = 0.3, inf → NaN."""
-    ang = np.deg2rad(np.arange(720) * 0.5 - 180.0)
-    d = np.stack([np.cos(ang), np.sin(ang)], 1)
-    best = np.full(len(ang), np.inf)
-    for cx, cy, r in circles:
-        b = d @ np.array([cx, cy])
-        disc = b**2 - (cx**2 + cy**2 - r**2)
-        t = b - np.sqrt(np.where(disc >= 0, disc, np.nan))
-        best = np.fmin(best, np.where((disc >= 0) & (t > 0), t, np.inf))
-    rng = np.where(np.isfinite(best), best, np.nan)
-    pts = np.zeros((len(ang), 3), np.float32)
-    pts[:, :2] = d * rng[:, None]
-    pts[:, 2] = 0.3
-    return pts
-
-
 def _frames() -> list[PerceptionFrame]:
     detector = get_laser_detector("classical")
     frames = []
@@ -46,7 +30,7 @@ def _frames() -> list[PerceptionFrame]:
             legs = [(c[0], c[1] + 0.12, 0.06), (c[0], c[1] - 0.12, 0.06)]
         else:  # stands by the table leg, the far leg behind the near one
             legs = [(STAND[0] - 0.07, STAND[1], 0.06), (STAND[0] + 0.12, STAND[1], 0.06)]
-        pts = _scan([TABLE_LEG, PILLAR, *legs])
+        pts = scan([TABLE_LEG, PILLAR, *legs])
         f = PerceptionFrame(
             k, k * 100_000_000, Pose2(), None, None, None, np.zeros(0), pts, np.zeros((1, 2)),
             np.zeros(len(pts), np.int16),

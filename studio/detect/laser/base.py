@@ -54,6 +54,8 @@ class LaserDetections:
         radius: ``(N,)`` float64, rough extent of the person's points around ``xy``, metres.
         segments: optional, per detection the ``int64`` indices of the input points that make it (for a
             merge of several scans: indices into the concatenation of the scans' points, in order).
+        legs: optional ``(N, 2, 2)`` float64, the two legs' positions of a :data:`KIND_PAIR` detection (NaN
+            rows for the other kinds): where two people stand close, the tracker may give them one each.
     """
 
     xy: FloatArray
@@ -61,6 +63,7 @@ class LaserDetections:
     kind: IntArray
     radius: FloatArray
     segments: tuple[IntArray, ...] | None = None
+    legs: FloatArray | None = None
 
     def __post_init__(self) -> None:
         xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
@@ -84,6 +87,11 @@ class LaserDetections:
             if len(segs) != n:
                 raise ValueError(f"LaserDetections.segments must have {n} entries, got {len(segs)}")
             object.__setattr__(self, "segments", segs)
+        if self.legs is not None:
+            legs = np.asarray(self.legs, dtype=np.float64)
+            if legs.shape != (n, 2, 2):
+                raise ValueError(f"LaserDetections.legs must have shape ({n}, 2, 2), got {legs.shape}")
+            object.__setattr__(self, "legs", legs)
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -108,7 +116,8 @@ class LaserDetections:
             idx = np.flatnonzero(idx)
         idx = idx.astype(np.int64).reshape(-1)
         segs = None if self.segments is None else tuple(self.segments[i] for i in idx)
-        return LaserDetections(self.xy[idx], self.scores[idx], self.kind[idx], self.radius[idx], segs)
+        legs = None if self.legs is None else self.legs[idx]
+        return LaserDetections(self.xy[idx], self.scores[idx], self.kind[idx], self.radius[idx], segs, legs)
 
     def above(self, threshold: float) -> LaserDetections:
         """The detections whose score is at least ``threshold``."""
@@ -118,7 +127,8 @@ class LaserDetections:
         """The detections moved by a 3×3 homogeneous planar transform (e.g. ``Pose2.matrix()``)."""
         m = np.asarray(matrix, dtype=np.float64)
         xy = self.xy @ m[:2, :2].T + m[:2, 2]
-        return LaserDetections(xy, self.scores, self.kind, self.radius, self.segments)
+        legs = None if self.legs is None else self.legs @ m[:2, :2].T + m[:2, 2]
+        return LaserDetections(xy, self.scores, self.kind, self.radius, self.segments, legs)
 
 
 def merge_detections(
@@ -139,7 +149,8 @@ def merge_detections(
             in the concatenation of all scans' points). Default: no shift.
 
     Returns:
-        The merged detections; ``segments`` is kept only when every part has segments.
+        The merged detections; ``segments`` (``legs``) is kept only when every part has them; a merged
+        detection has the legs of its best one.
     """
     parts = list(parts)
     if not parts:
@@ -151,6 +162,8 @@ def merge_detections(
     scores = np.concatenate([p.scores for p in parts])
     kind = np.concatenate([p.kind for p in parts])
     rad = np.concatenate([p.radius for p in parts])
+    has_legs = all(p.legs is not None or not len(p) for p in parts)
+    legs = np.concatenate([p.legs for p in parts if p.legs is not None]) if has_legs else None
     segs: list[IntArray] = []
     if has_segs:
         offs = list(offsets) if offsets is not None else [0] * len(parts)
@@ -161,7 +174,7 @@ def merge_detections(
             segs.extend(s + int(o) for s in p.segments)
     order = np.argsort(-scores, kind="stable")
     taken = np.zeros(len(scores), dtype=bool)
-    out_xy, out_s, out_k, out_r, out_seg = [], [], [], [], []
+    out_xy, out_s, out_k, out_r, out_seg, out_legs = [], [], [], [], [], []
     for i in order:
         if taken[i]:
             continue
@@ -174,6 +187,8 @@ def merge_detections(
         out_s.append(scores[i])
         out_k.append(kind[i])
         out_r.append(max(float(rad[i]), float(np.max(np.hypot(*(xy[grp] - c).T) + rad[grp]))))
+        if legs is not None:
+            out_legs.append(legs[i])
         if has_segs:
             out_seg.append(np.unique(np.concatenate([segs[j] for j in grp])))
     return LaserDetections(
@@ -182,6 +197,7 @@ def merge_detections(
         np.array(out_k),
         np.array(out_r),
         tuple(out_seg) if has_segs else None,
+        np.array(out_legs).reshape(-1, 2, 2) if legs is not None else None,
     )
 
 

@@ -273,7 +273,8 @@ class ClassicalLaserDetector:
             origin: ``(2,)`` the sensor's position (an unpaired leg's person lies behind it along the beam).
 
         Returns:
-            People; a pair's ``segments`` is the union of both legs' (None when ``legs`` has none).
+            People; a pair's ``segments`` is the union of both legs' (None when ``legs`` has none), its
+            ``legs`` the two legs' positions.
         """
         has_segs = legs.segments is not None
         segs_in = (
@@ -286,7 +287,7 @@ class ClassicalLaserDetector:
             (legs.kind == KIND_BLOB) & (legs.scores >= self.leg_min_score) & (width <= self.max_blob_width)
         )
         li = np.flatnonzero(is_leg)
-        xy, sc, kd, rad, seg = [], [], [], [], []
+        xy, sc, kd, rad, seg, lg = [], [], [], [], [], []
         used = np.zeros(n, dtype=bool)
         if li.size >= 2:
             d = np.hypot(*(legs.xy[li, None, :] - legs.xy[None, li, :]).transpose(2, 0, 1))
@@ -304,6 +305,7 @@ class ClassicalLaserDetector:
                 kd.append(KIND_PAIR)
                 rad.append(np.hypot(*(legs.xy[i] - c)) + max(legs.radius[i], legs.radius[j]))
                 seg.append(np.concatenate([segs_in[i], segs_in[j]]))
+                lg.append(legs.xy[[i, j]])
         behind = self.hidden_leg_offset * _along_beam(legs.xy, origin)
         for i in np.flatnonzero((is_leg & ~used) | is_blob):
             single = legs.kind[i] == KIND_LEG
@@ -313,10 +315,13 @@ class ClassicalLaserDetector:
             kd.append(int(legs.kind[i]))
             rad.append(max(float(legs.radius[i]), 0.15))
             seg.append(segs_in[i])
+            lg.append(np.full((2, 2), np.nan))
         if not xy:
             return LaserDetections.empty(with_segments=has_segs)
         segments = tuple(seg) if has_segs else None
-        return LaserDetections(np.array(xy), np.clip(sc, 0.0, 1.0), np.array(kd), np.array(rad), segments)
+        return LaserDetections(
+            np.array(xy), np.clip(sc, 0.0, 1.0), np.array(kd), np.array(rad), segments, np.array(lg)
+        )
 
     # -- LaserDetector ----------------------------------------------------------------------------------
     def detect(

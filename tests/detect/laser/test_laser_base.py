@@ -38,6 +38,7 @@ def test_empty_and_shapes():
         ({"scores": [1.5]}, r"\[0, 1\]"),
         ({"xy": [[np.nan, 0.0]]}, "finite"),
         ({"segments": (np.arange(2), np.arange(3))}, "segments"),
+        ({"legs": np.zeros((2, 2, 2))}, "legs"),
     ],
 )
 def test_validation(kwargs, msg):
@@ -68,6 +69,16 @@ def test_merge_detections_merges_close_and_offsets_segments():
     assert m.segments[i].tolist() == [0, 1, 12, 13]
     assert len(merge_detections([a, b], radius=0.05)) == 3
     assert len(merge_detections([])) == 0
+    assert m.legs is None  # the parts had no legs
+
+
+def test_merge_keeps_the_legs_of_the_best():
+    legs = np.array([[[1.0, -0.1], [1.0, 0.1]]])
+    a = LaserDetections([[1.0, 0.0]], [0.9], [KIND_PAIR], [0.2], legs=legs)
+    b = LaserDetections([[1.1, 0.0]], [0.5], [KIND_LEG], [0.2], legs=np.full((1, 2, 2), np.nan))
+    m = merge_detections([a, b, LaserDetections.empty()], radius=0.3)
+    assert len(m) == 1
+    np.testing.assert_allclose(m.legs[0], legs[0])
 
 
 def test_registry():

@@ -132,6 +132,18 @@ def test_people_without_segments():
     assert people.segments is None
 
 
+def test_a_pair_carries_its_two_legs():
+    """What the tracker needs to split a pair made of one leg of each of two people."""
+    det = ClassicalLaserDetector(hidden_leg_offset=0.05)
+    people = det.people(_legs([[2.0, 0.15], [2.0, -0.15], [4.0, 1.0]], [0.8, 0.7, 0.9]))
+    pair, single = np.flatnonzero(people.kind == KIND_PAIR)[0], np.flatnonzero(people.kind == KIND_LEG)[0]
+    np.testing.assert_allclose(sorted(people.legs[pair].tolist()), [[2.0, -0.15], [2.0, 0.15]])
+    assert np.isnan(people.legs[single]).all()
+    moved = people.transformed(np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0, 0, 1]]))
+    np.testing.assert_allclose(moved.legs[pair], people.legs[pair] + [1.0, 0.0])
+    assert people.select([pair]).legs.shape == (1, 2, 2)
+
+
 def test_pair_scores_above_single_leg():
     det = ClassicalLaserDetector()
     pair = det.people(_legs([[2.0, 0.15], [2.0, -0.15]], [0.7, 0.7]))
