@@ -379,9 +379,14 @@ def track_all(
             xo = fr.robot_pose.apply(xb)  # the outputs stay in the odometry frame
             cov = R @ p.cov @ R.T
             o, ob, k = fr.observations, observations[fr_i], p.det_index
-            # rows past the observations are legs of a pair split between two people: the pair's score,
-            # no box (it may have gone with the pair, but not to both)
-            j = int(ob.alt_of[k]) if k >= len(o) and ob.alt_of is not None else k
+            # rows past the observations are legs of a pair split between two people: placed by the laser
+            # alone, the pair's score, no box (the pair's box, if any, vouched for both: see camera_hits)
+            leg = k >= len(o)
+            j = int(ob.alt_of[k]) if leg and ob.alt_of is not None else k
+            if k < 0:
+                source = sources[p.track_id].most_common(1)[0][0]
+            else:
+                source = "laser" if leg else ob.source[k]
             people.append(
                 LabelPerson(
                     id=p.track_id,
@@ -390,7 +395,7 @@ def track_all(
                     x_odom=float(xo[0]),
                     y_odom=float(xo[1]),
                     cov=((cov[0, 0], cov[0, 1]), (cov[1, 0], cov[1, 1])),
-                    source=ob.source[k] if k >= 0 else sources[p.track_id].most_common(1)[0][0],
+                    source=source,
                     box=as_box(o.box[k]) if 0 <= k < len(o) else None,
                     score=float(o.score[j]) if j >= 0 else None,
                     extra={"interpolated": True} if j < 0 else {},
