@@ -188,9 +188,8 @@ def _pair_legs(obs: PersonObservations, laser: LaserDetections | None) -> FloatA
     if laser is None or laser.legs is None:
         return None
     out = np.full((len(obs), 2, 2), np.nan)
-    li = obs.laser_index
-    has = (li >= 0) & (np.asarray(obs.source) != "image")
-    out[has] = laser.legs[li[has]]
+    li = obs.laser_index  # -1 for image-only and scan-cluster positions
+    out[li >= 0] = laser.legs[li[li >= 0]]
     return out
 
 
