@@ -40,6 +40,10 @@ class LabelOptions:
         laser_detector: registry name (None: the classical detector).
         image_period_s: run the image detector at most this often, s (0: on every frame). The frames in
             between are fused from the laser alone; tracks carry the camera's confirmation across them.
+        quiet_view_period_s: with a detector that can look at part of the panorama (the bundled ones: their
+            views), the part where nobody was seen in the past second is looked at only this often, s (at
+            most ``image_period_s``: always all of it). The laser still sees people there in between, and
+            a box found there brings its views back to every image.
         static_filter: suppress laser detections on structure that never moves (world-frame map).
         scan_matching: correct the odometry's drift by matching each frame's scans to the recent ones
             (:mod:`studio.geometry.scan_match`; without odometry it is the robot's only motion estimate); the
@@ -63,6 +67,7 @@ class LabelOptions:
     image_detector: str | None = None
     laser_detector: str | None = None
     image_period_s: float = 0.2
+    quiet_view_period_s: float = 0.4
     static_filter: bool = True
     scan_matching: bool = True
     min_camera_hits: int = 3

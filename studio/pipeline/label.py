@@ -456,6 +456,8 @@ def label_recording(
         "tracks": len({p.id for lf in labels for p in lf.people}),
         "sync": info["sync"],
         "scan_matching": info["scan_matching"],
+        "image_looks": info["image_looks"],
+        "views_run": info["views_run"],
     }
     image_dets = [(f.index, f.stamp_ns, f.image) for f in frames if f.image is not None]
     return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes, image_dets)

@@ -28,6 +28,7 @@ from studio.pipeline.base import LabelOptions
 __all__ = [
     "NoLaserDetector",
     "PerceptionFrame",
+    "QuietViews",
     "base_scans",
     "detect_again",
     "laser_in_base",
@@ -38,6 +39,62 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 _BODY_EVERY = 4  # the map of the robot's body takes every 4th frame's scans
+
+
+class QuietViews:
+    """Which panorama columns each image detection looks at (``LabelOptions.quiet_view_period_s``).
+
+    A detection looks at the whole panorama when the last whole look is ``period_s`` old or more (its
+    header time); otherwise only at the columns where an earlier detection found someone within
+    ``recent_s`` before it, widened by ``margin_deg`` on each side (people move). Only detections
+    ``lag`` or more places earlier count: the ones still running when this one starts may have finished
+    or not, and the choice must not depend on that (the output is the same on every run).
+
+    Args:
+        period_s: the quiet part of the panorama is looked at this often, s.
+        recent_s: a box this recent (relative to the new image) keeps its columns looked at, s.
+        margin_deg: the columns of a box widened by this much on each side, degrees.
+        lag: detections that may still be running when the next one starts, plus one.
+    """
+
+    def __init__(self, period_s: float, *, recent_s: float = 1.0, margin_deg: float = 10.0, lag: int = 3):
+        self.period_ns = round(period_s * 1e9)
+        self.recent_ns = round(recent_s * 1e9)
+        self.margin_deg = float(margin_deg)
+        self.lag = int(lag)
+        self._stamps: list[int] = []  # header time of each detection started
+        self._boxes: list[FloatArray] = []  # its boxes, once it finished (in the order started)
+        self._last_whole: int | None = None
+        self.whole = self.partial = 0
+
+    def start(self, stamp_ns: int, width: int) -> NDArray[np.bool_] | None:
+        """The columns the detection of the image at ``stamp_ns`` looks at (``(W,)`` mask; None: all)."""
+        n = len(self._stamps)
+        self._stamps.append(stamp_ns)
+        done = n - self.lag + 1  # detections 0 … done-1 count
+        if (
+            self._last_whole is None
+            or stamp_ns - self._last_whole >= self.period_ns - 1_000_000
+            or done <= 0
+            or len(self._boxes) < done
+        ):
+            self._last_whole = stamp_ns
+            self.whole += 1
+            return None
+        cols = np.zeros(width, dtype=bool)
+        pad = self.margin_deg / 360.0 * width
+        for k in range(done - 1, -1, -1):
+            if stamp_ns - self._stamps[k] > self.recent_ns:
+                break
+            for u1, _, u2, _ in self._boxes[k]:
+                lo, hi = int(np.floor(u1 - pad)), int(np.ceil(u2 + pad))
+                cols[np.arange(lo, hi + 1) % width] = True
+        self.partial += 1
+        return cols
+
+    def finish(self, boxes: FloatArray) -> None:
+        """The boxes (``(N, 4)`` panorama px, seam form) of the next detection in the order started."""
+        self._boxes.append(np.asarray(boxes, dtype=np.float64).reshape(-1, 4))
 
 
 @dataclass
@@ -200,10 +257,20 @@ def perceive(
     matcher = ScanOdometry(ScanMatchConfig(every=2)) if options.scan_matching and use_laser else None
     has_odometry = rig.odometry is not None
 
-    def detect_image(detector: Any, pano: NDArray[np.uint8]) -> tuple[Any, NDArray[np.float32], float]:
+    def detect_image(
+        detector: Any, pano: NDArray[np.uint8], columns: NDArray[np.bool_] | None
+    ) -> tuple[Any, NDArray[np.float32], float]:
         t = time.perf_counter()
-        det = detector.detect(pano)
+        det = detector.detect(pano) if columns is None else detector.detect(pano, columns=columns)
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
+
+    # the part of the panorama where nobody was seen lately is looked at less often
+    quiet = (
+        QuietViews(options.quiet_view_period_s)
+        if getattr(image_detector, "looks_at_columns", False)
+        and options.quiet_view_period_s > options.image_period_s
+        else None
+    )
 
     t_img = t_las = t_io = t_wait = t_map = t_match = 0.0
     last_image_ns: int | None = None
@@ -222,6 +289,8 @@ def perceive(
                     return
                 t = time.perf_counter()
                 pf.image, pf.appearance, dt = job.result()
+                if quiet is not None:
+                    quiet.finish(pf.image.boxes)
                 t_wait += time.perf_counter() - t
                 t_img += dt
             pending.popleft()
@@ -254,7 +323,9 @@ def perceive(
             due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
             if use_camera and frame.panorama is not None and image_detector is not None and due:
                 last_image_ns = stamp
-                job = pool.submit(detect_image, image_detector, frame.panorama.image)
+                pano = frame.panorama.image
+                columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
+                job = pool.submit(detect_image, image_detector, pano, columns)
             t2 = time.perf_counter()
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector)
@@ -301,6 +372,8 @@ def perceive(
         if matcher is None
         else {"matched": matcher.matched, "rejected": matcher.rejected, "skipped": matcher.skipped},
         "sync": report.summary(),
+        "image_looks": None if quiet is None else {"whole": quiet.whole, "partial": quiet.partial},
+        "views_run": getattr(image_detector, "views_run", None),
         "frames": len(frames),
         "use_camera": use_camera,
         "use_laser": use_laser,

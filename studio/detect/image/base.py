@@ -175,6 +175,11 @@ class ImageDetector(Protocol):
     A detector may also set ``thread_safe = True`` when ``detect`` may run on several panoramas at once from
     different threads (the bundled ones do); ``studio label`` then keeps two panoramas in flight. Without it
     one detection runs at a time (still beside reading and the laser detector).
+
+    A detector that can look at part of the panorama only sets ``looks_at_columns = True`` and accepts
+    ``detect(pano, columns=mask)``, ``mask`` a ``(W,)`` boolean array of the panorama columns where someone
+    may be (the bundled ones run only the views that see one of them); ``studio label`` then looks at the
+    quiet part of the panorama less often (``LabelOptions.quiet_view_period_s``).
     """
 
     name: str

@@ -77,6 +77,7 @@ class CombinedDetector:
 
     name = "combined"
     thread_safe = True
+    looks_at_columns = True
 
     def __init__(
         self,
@@ -93,12 +94,18 @@ class CombinedDetector:
         self.min_iou = float(min_iou)
         self.movenet_alone_score = float(movenet_alone_score)
 
-    def detect(self, pano: NDArray[np.uint8]) -> ImageDetections:
-        """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``."""
+    @property
+    def views_run(self) -> int:
+        """Views inferred so far by both networks."""
+        return self.centernet.views_run + self.movenet.views_run
+
+    def detect(self, pano: NDArray[np.uint8], *, columns: NDArray[np.bool_] | None = None) -> ImageDetections:
+        """People in an equirectangular BGR uint8 panorama ``(H, W, 3)`` (``columns`` as
+        :meth:`~studio.detect.image.sweep.ViewSweepDetector.detect`)."""
         check_pano(pano)
         return combine_detections(
-            self.centernet.detect(pano),
-            self.movenet.detect(pano),
+            self.centernet.detect(pano, columns=columns),
+            self.movenet.detect(pano, columns=columns),
             min_iou=self.min_iou,
             movenet_alone_score=self.movenet_alone_score,
         )

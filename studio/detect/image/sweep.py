@@ -313,6 +313,7 @@ class ViewSweepDetector:
 
     name = "sweep"
     thread_safe = True  # ``detect`` may run on several panoramas at once (see ``ImageDetector``)
+    looks_at_columns = True  # ``detect`` takes ``columns`` (see ``ImageDetector``)
 
     def __init__(
         self,
@@ -327,6 +328,8 @@ class ViewSweepDetector:
         self.views = sweep.views()
         self.renderer = renderer or ViewRenderer()
         self.workers = max(1, int(workers))
+        self.views_run = 0  # views inferred so far (``detect`` with ``columns`` may skip some)
+        self._footprints: dict[int, NDArray[np.bool_]] = {}  # panorama width → (views, W) column masks
         # threads start on first use; made here so two threads' first detections share one pool
         self._pool = (
             ThreadPoolExecutor(self.workers, thread_name_prefix="studio-views") if self.workers > 1 else None
@@ -336,10 +339,27 @@ class ViewSweepDetector:
         """People in one BGR uint8 view ``(h, w, 3)`` (pre-process → infer → post-process)."""
         raise NotImplementedError
 
-    def render_views(self, pano: NDArray[np.uint8]) -> list[NDArray[np.uint8]]:
-        """The sweep's views of ``pano`` (BGR uint8), in :attr:`views` order."""
+    def render_views(
+        self, pano: NDArray[np.uint8], views: list[PerspectiveView] | None = None
+    ) -> list[NDArray[np.uint8]]:
+        """``views`` (default: the sweep's) of ``pano`` (BGR uint8), in order."""
         check_pano(pano)
-        return self.renderer.render_many(pano, self.views)
+        if views is None or len(views) == len(self.views):
+            return self.renderer.render_many(pano, self.views)
+        # one by one: each subset's stacked look-up tables would be cached on their own
+        return [self.renderer.render(pano, v) for v in views]
+
+    def views_seeing(self, columns: NDArray[np.bool_]) -> list[int]:
+        """Indices of the views whose horizontal field of view (around the optical axis) covers at least
+        one of ``columns``, a ``(W,)`` mask of panorama columns."""
+        cols = np.asarray(columns, dtype=bool).reshape(-1)
+        w = len(cols)
+        if w not in self._footprints:
+            az = (0.5 - (np.arange(w) + 0.5) / w) * 2.0 * math.pi  # column centres (u = 0 looks back)
+            yaw = np.array([[v.yaw] for v in self.views])
+            half = np.array([[v.fov / 2.0] for v in self.views])
+            self._footprints[w] = np.abs((az[None] - yaw + math.pi) % (2.0 * math.pi) - math.pi) <= half
+        return [int(i) for i in np.flatnonzero((self._footprints[w] & cols).any(axis=1))]
 
     def detect_views(self, images: list[NDArray[np.uint8]]) -> list[ViewDetections]:
         """``detect_view`` of every image, ``workers`` at a time, in order."""
@@ -347,9 +367,19 @@ class ViewSweepDetector:
             return [self.detect_view(img) for img in images]
         return list(self._pool.map(self.detect_view, images))
 
-    def detect(self, pano: NDArray[np.uint8]) -> ImageDetections:
-        """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``."""
+    def detect(self, pano: NDArray[np.uint8], *, columns: NDArray[np.bool_] | None = None) -> ImageDetections:
+        """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``.
+
+        Args:
+            pano: the panorama.
+            columns: ``(W,)`` mask of the panorama columns to look at: only the views that see one of them
+                run (:meth:`views_seeing`). None: every view.
+        """
         w, h = check_pano(pano)
-        per_view = self.detect_views(self.render_views(pano))
-        b, s, k, m, vi = views_to_pano(self.views, per_view, w, h)
+        if columns is not None and len(columns) != w:
+            raise ValueError(f"columns: need one flag per panorama column ({w}), got {len(columns)}")
+        views = self.views if columns is None else [self.views[i] for i in self.views_seeing(columns)]
+        self.views_run += len(views)
+        per_view = self.detect_views(self.render_views(pano, views))
+        b, s, k, m, vi = views_to_pano(views, per_view, w, h)
         return merge_on_sphere(b, s, k, m, vi, w, h, params=self.merge)

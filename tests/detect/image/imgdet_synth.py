@@ -86,9 +86,11 @@ class OracleSweep(ViewSweepDetector):
         self.pano_w, self.pano_h = pano_w, pano_h
         self._view_iter: list[PerspectiveView] = []
 
-    def render_views(self, pano: NDArray[np.uint8]) -> list[NDArray[np.uint8]]:
-        self._view_iter = list(self.views)
-        return super().render_views(pano)
+    def render_views(
+        self, pano: NDArray[np.uint8], views: list[PerspectiveView] | None = None
+    ) -> list[NDArray[np.uint8]]:
+        self._view_iter = list(self.views if views is None else views)
+        return super().render_views(pano, views)
 
     def detect_view(self, image: NDArray[np.uint8]) -> ViewDetections:
         view = self._view_iter.pop(0)

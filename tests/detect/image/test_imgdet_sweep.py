@@ -143,3 +143,37 @@ def test_sweep_params_views():
     assert math.isclose(vs[1].yaw, math.pi / 2)
     assert math.isclose(vs[0].pitch, math.radians(-5))
     _ = person_keypoints(0.0, 1.0)
+
+
+def _columns(*spans_deg: tuple[float, float]) -> np.ndarray:
+    """A ``(W,)`` mask of the panorama columns whose azimuth lies in one of the spans (degrees, left +)."""
+    az = np.degrees((0.5 - (np.arange(W) + 0.5) / W) * 2 * math.pi)
+    out = np.zeros(W, bool)
+    for lo, hi in spans_deg:
+        out |= ((az - lo) % 360) <= (hi - lo) % 360
+    return out
+
+
+def test_views_seeing_columns():
+    det = OracleSweep([], W, H)  # 5 views of 90°, at 0, ±72, ±144 degrees
+    assert det.views_seeing(_columns((-5, 5))) == [0]  # straight ahead: only the front view
+    assert det.views_seeing(_columns((30, 40))) == [0, 1]  # in the overlap of two views
+    assert det.views_seeing(_columns((175, -175))) == [2, 3]  # behind, across the seam
+    assert det.views_seeing(np.zeros(W, bool)) == []
+    assert det.views_seeing(np.ones(W, bool)) == [0, 1, 2, 3, 4]
+
+
+def test_detect_looks_only_at_the_views_that_see_the_columns():
+    people = [(0.0, 3.0), (math.radians(144), 2.0)]
+    det = OracleSweep(people, W, H)
+    pano = np.zeros((H, W, 3), np.uint8)
+    ahead = det.detect(pano, columns=_columns((-10, 10)))
+    assert det.views_run == 1
+    assert len(ahead) == 1  # the person behind on the left is not looked at
+    everyone = det.detect(pano)
+    assert det.views_run == 1 + 5
+    assert len(everyone) == 2
+    front = everyone.boxes[np.argmin(np.abs(everyone.boxes[:, :3:2].mean(axis=1) - W / 2))]
+    np.testing.assert_allclose(ahead.boxes[0], front)  # the one ahead is found as with every view
+    with pytest.raises(ValueError, match="one flag per panorama column"):
+        det.detect(pano, columns=np.ones(W // 2, bool))
