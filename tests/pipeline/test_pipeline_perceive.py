@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,15 +13,6 @@ from studio.detect.image import ImageDetections, ImageDetectorError
 from studio.io import load_rig
 from studio.pipeline import LabelOptions
 from studio.pipeline.perceive import perceive
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from studio.sim import simulate
-
-    out = tmp_path_factory.mktemp("sim") / "moving"
-    simulate("moving", out=out, seconds=2.0, seed=3)
-    return out
 
 
 class _Jittery:

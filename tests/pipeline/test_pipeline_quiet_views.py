@@ -68,15 +68,6 @@ def test_partial_look_wraps_the_seam_and_can_be_empty():
     assert not q.start(1400 * MS, W).any()  # nobody seen lately: no view needs to run
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from studio.sim import simulate
-
-    out = tmp_path_factory.mktemp("sim") / "moving"
-    simulate("moving", out=out, seconds=3.0, seed=3)
-    return out
-
-
 class _Seer:
     """A detector that can look at part of the panorama: it takes 0–40 ms at random and finds one person
     at columns 40–45 % of the width whenever it looks there."""
