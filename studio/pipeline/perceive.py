@@ -54,7 +54,8 @@ class QuietViews:
         period_s: the quiet part of the panorama is looked at this often, s.
         recent_s: a box this recent (relative to the new image) keeps its columns looked at, s.
         margin_deg: the columns of a box widened by this much on each side, degrees.
-        lag: detections that may still be running when the next one starts, plus one.
+        lag: detections that may still be running when the next one starts, plus one (a detection
+            ``lag`` places back that has not finished is an error: the choice would depend on timing).
     """
 
     def __init__(self, period_s: float, *, recent_s: float = 1.0, margin_deg: float = 10.0, lag: int = 3):
@@ -72,12 +73,9 @@ class QuietViews:
         n = len(self._stamps)
         self._stamps.append(stamp_ns)
         done = n - self.lag + 1  # detections 0 … done-1 count
-        if (
-            self._last_whole is None
-            or stamp_ns - self._last_whole >= self.period_ns - 1_000_000
-            or done <= 0
-            or len(self._boxes) < done
-        ):
+        if done > 0 and len(self._boxes) < done:
+            raise RuntimeError(f"QuietViews: detection {done - 1} is still running (lag {self.lag})")
+        if self._last_whole is None or stamp_ns - self._last_whole >= self.period_ns - 1_000_000 or done <= 0:
             self._last_whole = stamp_ns
             self.whole += 1
             return None
@@ -265,8 +263,9 @@ def perceive(
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
 
     # the part of the panorama where nobody was seen lately is looked at less often
+    in_flight = 2  # image detections running at most while the next frames are read
     quiet = (
-        QuietViews(options.quiet_view_period_s)
+        QuietViews(options.quiet_view_period_s, lag=in_flight + 1)
         if getattr(image_detector, "looks_at_columns", False)
         and options.quiet_view_period_s > options.image_period_s
         else None
@@ -354,7 +353,7 @@ def perceive(
                         body_maps[k].add(*scan)
                 t_map += time.perf_counter() - t3
             pending.append((frame, pf, job))
-            hand_on(wait_for=2)
+            hand_on(wait_for=in_flight)
             t0 = time.perf_counter()
         hand_on(wait_for=0)
     info = {

@@ -123,3 +123,11 @@ def test_quiet_views_off_looks_at_everything(recording, monkeypatch):
     det, _, info = _run(recording, monkeypatch, 0, quiet_view_period_s=0.2)
     assert info["image_looks"] is None
     assert all(c is None for c in det.looks.values())
+
+
+def test_a_detection_lag_places_back_must_have_finished():
+    q = QuietViews(10.0, lag=3)
+    for n in range(3):
+        q.start(n * 200 * MS, W)
+    with pytest.raises(RuntimeError, match="is still running"):
+        q.start(600 * MS, W)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
@@ -329,6 +330,7 @@ class ViewSweepDetector:
         self.renderer = renderer or ViewRenderer()
         self.workers = max(1, int(workers))
         self.views_run = 0  # views inferred so far (``detect`` with ``columns`` may skip some)
+        self._count_lock = threading.Lock()
         self._footprints: dict[int, NDArray[np.bool_]] = {}  # panorama width → (views, W) column masks
         # threads start on first use; made here so two threads' first detections share one pool
         self._pool = (
@@ -350,20 +352,41 @@ class ViewSweepDetector:
         return [self.renderer.render(pano, v) for v in views]
 
     def views_seeing(self, columns: NDArray[np.bool_]) -> list[int]:
-        """Indices of the views whose horizontal field of view (around the optical axis) covers at least
-        one of ``columns``, a ``(W,)`` mask of panorama columns."""
+        """Indices of the views that see at least one of ``columns``, a ``(W,)`` mask of panorama columns
+        (a view's columns: those its whole image spans, :meth:`PerspectiveView.box_to_pano`; a pitched
+        view reaches wider at its bottom corners)."""
         cols = np.asarray(columns, dtype=bool).reshape(-1)
         w = len(cols)
         if w not in self._footprints:
-            az = (0.5 - (np.arange(w) + 0.5) / w) * 2.0 * math.pi  # column centres (u = 0 looks back)
-            yaw = np.array([[v.yaw] for v in self.views])
-            half = np.array([[v.fov / 2.0] for v in self.views])
-            self._footprints[w] = np.abs((az[None] - yaw + math.pi) % (2.0 * math.pi) - math.pi) <= half
+            u = np.arange(w) + 0.5
+            feet = []
+            for v in self.views:
+                u1, _, u2, _ = v.box_to_pano(np.array([0.0, 0.0, v.width, v.height]), w, w // 2)[0]
+                feet.append((u - u1) % w <= u2 - u1)  # seam form: u2 may exceed W
+            self._footprints[w] = np.array(feet)
         return [int(i) for i in np.flatnonzero((self._footprints[w] & cols).any(axis=1))]
 
+    def _drop_cut(self, chosen: list[int], per_view: list[ViewDetections]) -> list[ViewDetections]:
+        """Without the boxes that touch a view's left or right border where no chosen view continues it: the
+        person is cut there, and the view that would see them whole did not run."""
+        out = []
+        for i, det in zip(chosen, per_view, strict=True):
+            v = self.views[i]
+            keep = np.ones(len(det), bool)
+            for side, az in ((0, v.yaw + v.fov / 2.0 + 1e-3), (1, v.yaw - v.fov / 2.0 - 1e-3)):
+                others = [self.views[j] for j in chosen if j != i]
+                if any(abs((az - o.yaw + math.pi) % (2.0 * math.pi) - math.pi) < o.fov / 2.0 for o in others):
+                    continue
+                edge = det.boxes[:, 0] if side == 0 else v.width - det.boxes[:, 2]
+                keep &= edge >= self.merge.border_px
+            kp = None if det.keypoints is None else det.keypoints[keep]
+            out.append(det if keep.all() else ViewDetections(det.boxes[keep], det.scores[keep], kp))
+        return out
+
     def detect_views(self, images: list[NDArray[np.uint8]]) -> list[ViewDetections]:
-        """``detect_view`` of every image, ``workers`` at a time, in order."""
-        if self._pool is None or len(images) < 2:
+        """``detect_view`` of every image, ``workers`` at a time, in order (a single one on the pool's
+        threads too: a network run on yet another thread keeps memory of its own, ~40 MB more at peak)."""
+        if self._pool is None or not images:
             return [self.detect_view(img) for img in images]
         return list(self._pool.map(self.detect_view, images))
 
@@ -373,13 +396,18 @@ class ViewSweepDetector:
         Args:
             pano: the panorama.
             columns: ``(W,)`` mask of the panorama columns to look at: only the views that see one of them
-                run (:meth:`views_seeing`). None: every view.
+                run (:meth:`views_seeing`), and a box cut by a view's border is dropped where the next view
+                did not run. None: every view.
         """
         w, h = check_pano(pano)
         if columns is not None and len(columns) != w:
             raise ValueError(f"columns: need one flag per panorama column ({w}), got {len(columns)}")
-        views = self.views if columns is None else [self.views[i] for i in self.views_seeing(columns)]
-        self.views_run += len(views)
+        chosen = list(range(len(self.views))) if columns is None else self.views_seeing(columns)
+        views = [self.views[i] for i in chosen]
+        with self._count_lock:
+            self.views_run += len(views)
         per_view = self.detect_views(self.render_views(pano, views))
+        if len(views) < len(self.views):
+            per_view = self._drop_cut(chosen, per_view)
         b, s, k, m, vi = views_to_pano(views, per_view, w, h)
         return merge_on_sphere(b, s, k, m, vi, w, h, params=self.merge)

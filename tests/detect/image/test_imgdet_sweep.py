@@ -177,3 +177,15 @@ def test_detect_looks_only_at_the_views_that_see_the_columns():
     np.testing.assert_allclose(ahead.boxes[0], front)  # the one ahead is found as with every view
     with pytest.raises(ValueError, match="one flag per panorama column"):
         det.detect(pano, columns=np.ones(W // 2, bool))
+
+
+def test_a_person_cut_by_a_border_whose_next_view_did_not_run_is_dropped():
+    # view 0 sees -45°..45°; a person at 42° is cut by its left border, one at 25° is whole in it
+    det = OracleSweep([(math.radians(42), 2.0), (math.radians(25), 3.0)], W, H)
+    pano = np.zeros((H, W, 3), np.uint8)
+    out = det.detect(pano, columns=_columns((-5, 5)))
+    assert det.views_run == 1
+    assert len(out) == 1
+    assert abs(out.boxes[0, :3:2].mean() - W * (0.5 - 25 / 360)) < 15
+    both = det.detect(pano, columns=_columns((-5, 5), (60, 65)))  # view 1 runs too: whole there
+    assert len(both) == 2
