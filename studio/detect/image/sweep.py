@@ -372,9 +372,9 @@ class ViewSweepDetector:
         out = []
         for i, det in zip(chosen, per_view, strict=True):
             v = self.views[i]
+            others = [self.views[j] for j in chosen if j != i]
             keep = np.ones(len(det), bool)
             for side, az in ((0, v.yaw + v.fov / 2.0 + 1e-3), (1, v.yaw - v.fov / 2.0 - 1e-3)):
-                others = [self.views[j] for j in chosen if j != i]
                 if any(abs((az - o.yaw + math.pi) % (2.0 * math.pi) - math.pi) < o.fov / 2.0 for o in others):
                     continue
                 edge = det.boxes[:, 0] if side == 0 else v.width - det.boxes[:, 2]
