@@ -78,9 +78,11 @@ def laser_again(frames: list[Any]) -> list[Any]:
 
     detector = get_laser_detector("classical")
     out = []
+    memory: dict[int, Any] = {}  # each scan's legs paired with the scanner's last scan, as in perceive
     for f in frames:
-        laser, z = detect_again(f, detector)
-        out.append(replace(f, laser=laser, laser_z=z))
+        before = dict(memory)
+        laser, z = detect_again(f, detector, memory=memory)
+        out.append(replace(f, laser=laser, laser_z=z, leg_memory=before))
     return out
 
 

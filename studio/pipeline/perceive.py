@@ -35,6 +35,7 @@ __all__ = [
     "odom_scans",
     "off_people",
     "perceive",
+    "remembers_legs",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -111,6 +112,9 @@ class PerceptionFrame:
     origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
     # T_world_base: the odometry pose corrected by scan matching (None: robot_pose, no correction)
     track_pose: Pose2 | None = None
+    # per scanner, the legs of its previous scan the laser detector paired this frame's legs with
+    # (``LegMemory``, in the odometry frame; None for detectors that look at one scan at a time)
+    leg_memory: dict[int, Any] | None = None
 
     @property
     def world_pose(self) -> Pose2:
@@ -118,11 +122,39 @@ class PerceptionFrame:
         return self.robot_pose if self.track_pose is None else self.track_pose
 
 
+def remembers_legs(detector: Any) -> bool:
+    """Whether ``detector`` pairs legs with the scanner's last scan (the classical one does)."""
+    return callable(getattr(detector, "detect_remembering", None))
+
+
+def _detect_scan(
+    detector: Any,
+    points: FloatArray,
+    valid: NDArray[np.bool_],
+    memory: dict[int, Any] | None,
+    k: int,
+    to_fixed: FloatArray,
+    *,
+    update: bool,
+) -> LaserDetections:
+    """One scan through ``detector``; with ``memory`` (per scanner) paired with scanner ``k``'s last scan,
+    and the memory updated in place when ``update``."""
+    if memory is None or not remembers_legs(detector):
+        return detector.detect(points, valid=valid)
+    det, after = detector.detect_remembering(points, valid=valid, memory=memory.get(k), to_fixed=to_fixed)
+    if update:
+        memory[k] = after
+    return det
+
+
 def laser_in_base(
-    frame: Any, detector: Any
+    frame: Any, detector: Any, memory: dict[int, Any] | None = None
 ) -> tuple[LaserDetections, FloatArray, NDArray[np.float32], FloatArray, NDArray[np.int16]]:
     """Run ``detector`` on each scan of ``frame`` (a :class:`studio.io.Frame`) and bring it all to the base
     frame.
+
+    ``memory`` (per scanner index, updated in place) lets a detector that :func:`remembers_legs` pair
+    each scan's legs with the scanner's last scan, in the odometry frame.
 
     Returns:
         The detections of all scans merged (their segments index the points), each one's scan-plane height
@@ -136,9 +168,9 @@ def laser_in_base(
         scan = sib.scan
         pts2 = scan.points()
         valid = scan.valid()
-        det = detector.detect(pts2, valid=valid)
         pose = sib.sensor_pose
         m = pose.to_pose2().matrix()
+        det = _detect_scan(detector, pts2, valid, memory, k, frame.robot_pose.matrix() @ m, update=True)
         parts.append(det.transformed(m))
         p3 = np.zeros((len(pts2), 3))
         p3[:, :2] = np.nan_to_num(pts2)
@@ -175,12 +207,17 @@ def _heights(merged: LaserDetections, points: NDArray[np.float32], fallback: flo
 
 
 def detect_again(
-    f: PerceptionFrame, detector: Any, drop: NDArray[np.bool_] | None = None
+    f: PerceptionFrame,
+    detector: Any,
+    drop: NDArray[np.bool_] | None = None,
+    memory: dict[int, Any] | None = None,
 ) -> tuple[LaserDetections, FloatArray]:
     """Run ``detector`` again on the frame's stored scans, without the points ``drop`` marks.
 
     Each scan goes to the detector in the base frame's orientation with its scanner at the origin (what
-    the classical detector needs; a detector that reads beam order and ranges sees the same scan).
+    the classical detector needs; a detector that reads beam order and ranges sees the same scan). Legs
+    are paired with the previous scans as in :func:`perceive`: with ``memory`` (per scanner, updated in
+    place; to run every frame again in order), else with the frame's own :attr:`PerceptionFrame.leg_memory`.
 
     Returns:
         The merged detections (segments index ``f.points``) and each one's scan-plane height, as
@@ -193,8 +230,17 @@ def detect_again(
         valid = np.isfinite(pts[:, 0])
         if drop is not None:
             valid &= ~drop[sel]
-        det = detector.detect(np.where(valid[:, None], pts, np.nan), valid=valid)
-        parts.append(det.transformed(np.array([[1.0, 0.0, origin[0]], [0.0, 1.0, origin[1]], [0, 0, 1]])))
+        shift = np.array([[1.0, 0.0, origin[0]], [0.0, 1.0, origin[1]], [0, 0, 1]])
+        det = _detect_scan(
+            detector,
+            np.where(valid[:, None], pts, np.nan),
+            valid,
+            f.leg_memory if memory is None else memory,
+            k,
+            f.robot_pose.matrix() @ shift,
+            update=memory is not None,
+        )
+        parts.append(det.transformed(shift))
         offsets.append(int(sel[0]) if len(sel) else 0)
     merged = merge_detections(parts, offsets=offsets) if parts else LaserDetections.empty(with_segments=True)
     mean_z = float(np.nanmean(f.points[:, 2])) if np.isfinite(f.points[:, 2]).any() else 0.0
@@ -254,6 +300,8 @@ def perceive(
     # (every other frame with odometry: it is exact over a tenth of a second; ~2.5 ms per frame)
     matcher = ScanOdometry(ScanMatchConfig(every=2)) if options.scan_matching and use_laser else None
     has_odometry = rig.odometry is not None
+    # per scanner, the legs of its last scan (for a laser detector that pairs legs over time)
+    leg_memory: dict[int, Any] | None = {} if remembers_legs(laser_detector) else None
 
     def detect_image(
         detector: Any, pano: NDArray[np.uint8], columns: NDArray[np.bool_] | None
@@ -326,8 +374,9 @@ def perceive(
                 columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
                 job = pool.submit(detect_image, image_detector, pano, columns)
             t2 = time.perf_counter()
+            memory_before = None if leg_memory is None else dict(leg_memory)
             if use_laser and laser_detector is not None:
-                laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector)
+                laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector, leg_memory)
             else:
                 laser, laser_z = None, np.zeros(0)
                 # scan points only (the viewer and the export still show the scans)
@@ -337,6 +386,7 @@ def perceive(
             pf = PerceptionFrame(
                 frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
+            pf.leg_memory = memory_before
             if matcher is not None and laser is not None:
                 pf.track_pose = matcher.step(
                     off_people(points, laser), frame.robot_pose if has_odometry else None

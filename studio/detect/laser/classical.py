@@ -9,6 +9,9 @@
    labelled scans of ``leg_tracker`` (``bench/laser_sweep.py`` reproduces them); no weights are downloaded.
 3. Legs 0.1–0.6 m apart pair into one person at their midpoint; wide person-like segments are one
    person (legs together, skirts, coats); unpaired legs are persons with a lower score.
+4. Over time (:meth:`ClassicalLaserDetector.detect_remembering`), the pairing of the previous scan
+   carries over (:class:`LegMemory`): where the legs of two people stand in a row 0.2 m apart, one scan
+   alone cannot tell whose leg is whose, but the scans before it can.
 
 Several scanners: :meth:`ClassicalLaserDetector.detect_scans` detects per scan (each in the common frame
 with its sensor origin) and merges detections closer than ``merge_radius``.
@@ -21,12 +24,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import linear_sum_assignment
 
 from studio.detect.laser.base import KIND_BLOB, KIND_LEG, KIND_PAIR, LaserDetections, merge_detections
 from studio.detect.laser.errors import LaserDetectorError
 from studio.detect.laser.segment import FEATURE_NAMES, SegmentParams, segment_features, segment_scan
 
-__all__ = ["LEG_MODEL", "ClassicalLaserDetector", "LegModel", "leg_basis"]
+__all__ = ["LEG_MODEL", "ClassicalLaserDetector", "LegMemory", "LegModel", "leg_basis"]
 
 FloatArray = NDArray[np.float64]
 
@@ -135,6 +139,54 @@ def _along_beam(xy: FloatArray, origin: ArrayLike) -> FloatArray:
     return np.divide(d, n, out=np.zeros_like(d), where=n > 0)
 
 
+@dataclass(frozen=True)
+class LegMemory:
+    """The legs of one scanner's last scan, in a frame fixed to the world, and how they were paired.
+
+    Where the legs of two people stand in a row about 0.2 m apart (people side by side), one scan cannot
+    tell whose leg is whose, and pairing the two inner legs makes one person between the two. The scans
+    before can tell: two legs that were both seen in the last scan without being paired together are not
+    paired now (when the other leg of one of them is hidden, the two left are not one person), and two
+    that were paired are preferred (:attr:`ClassicalLaserDetector.memory_keep`). A pair is never forced:
+    the first scan of two people may pair across them, and their next scans, with more legs, undo it.
+
+    Attributes:
+        xy: ``(M, 2)`` leg positions in the fixed frame (odometry), metres.
+        partner: ``(M,)`` index of the leg each one was paired with, -1 unpaired.
+    """
+
+    xy: FloatArray
+    partner: NDArray[np.int64]
+
+    def relations(self, xy: FloatArray, radius: float) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """What the last scan says about pairing the legs at ``xy`` (``(N, 2)``, fixed frame).
+
+        A leg is the same leg as the nearest one of the last scan within ``radius`` metres (one to one).
+
+        Returns:
+            ``apart`` ``(N, N)``: pairs of legs that were both seen last scan without being paired together
+            (they must not be paired now), and ``together`` ``(N, N)``: pairs that were paired.
+        """
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        n = len(xy)
+        apart = np.zeros((n, n), dtype=bool)
+        together = np.zeros((n, n), dtype=bool)
+        if not n or not len(self.xy) or radius <= 0:
+            return apart, together
+        d = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
+        rows, cols = linear_sum_assignment(np.where(d <= radius, d, 1e6))
+        same = np.full(n, -1)  # the leg of the last scan each leg is
+        for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
+            if d[r, c] <= radius:
+                same[r] = c
+        seen = np.flatnonzero(same >= 0)
+        paired = self.partner[same[seen]][:, None] == same[seen][None, :]
+        together[np.ix_(seen, seen)] = paired
+        apart[np.ix_(seen, seen)] = ~paired
+        np.fill_diagonal(apart, False)
+        return apart, together
+
+
 _EXACT_PAIRING_MAX = 10  # legs in one group of pairable legs searched exhaustively
 
 
@@ -215,6 +267,12 @@ class ClassicalLaserDetector:
             (seen on simulated walkers: unpaired legs sit 0.08 m short of the body centre, pairs 0.035 m), so
             a single-leg person is placed this much further along the beam than the leg, metres.
         merge_radius: detections of several scans closer than this are one person, metres.
+        memory_radius: over time (:meth:`detect_remembering`), a leg this close to one of the scanner's last
+            scan (in the fixed frame) is the same leg, metres; 0 pairs every scan on its own. A walker's
+            legs move 0.1–0.2 m between scans at 10 Hz (the swinging one up to twice the body's speed).
+        memory_keep: two legs paired in the last scan count as this much closer together when they are
+            paired again, metres. Less than the gap between a person's own legs and a pair across two
+            people walking side by side (≈ 0.25 m), so more legs seen undo a pair made across them.
         model: the leg likelihood.
     """
 
@@ -229,6 +287,8 @@ class ClassicalLaserDetector:
     merge_radius: float = 0.3
     leg_radius: float = 0.07
     hidden_leg_offset: float = 0.045
+    memory_radius: float = 0.3
+    memory_keep: float = 0.2
     model: LegModel = LEG_MODEL
 
     def __post_init__(self) -> None:
@@ -265,17 +325,36 @@ class ClassicalLaserDetector:
         kind = np.where(width > self.max_leg_width, KIND_BLOB, KIND_LEG)
         return LaserDetections(xy, p, kind, np.maximum(width / 2.0, 0.05), tuple(segs))
 
-    def people(self, legs: LaserDetections, *, origin: ArrayLike = (0.0, 0.0)) -> LaserDetections:
+    def people(
+        self,
+        legs: LaserDetections,
+        *,
+        origin: ArrayLike = (0.0, 0.0),
+        apart: NDArray[np.bool_] | None = None,
+        together: NDArray[np.bool_] | None = None,
+    ) -> LaserDetections:
         """People from leg candidates: leg pairing (:func:`_pairing`), then unpaired legs and blobs.
 
         Args:
             legs: leg candidates as :meth:`legs` returns them (``segments`` optional).
             origin: ``(2,)`` the sensor's position (an unpaired leg's person lies behind it along the beam).
+            apart, together: optional ``(N, N)`` bool over the candidates: pairs that must not be formed, and
+                pairs preferred by :attr:`memory_keep` (what :meth:`LegMemory.relations` says).
 
         Returns:
             People; a pair's ``segments`` is the union of both legs' (None when ``legs`` has none), its
             ``legs`` the two legs' positions.
         """
+        return self._people(legs, origin, apart, together)[0]
+
+    def _people(
+        self,
+        legs: LaserDetections,
+        origin: ArrayLike,
+        apart: NDArray[np.bool_] | None,
+        together: NDArray[np.bool_] | None,
+    ) -> tuple[LaserDetections, NDArray[np.int64]]:
+        """:meth:`people`, and ``(N,)`` the candidate each one was paired with (-1 unpaired)."""
         has_segs = legs.segments is not None
         segs_in = (
             legs.segments if legs.segments is not None else tuple(np.zeros(0, np.int64) for _ in legs.xy)
@@ -288,17 +367,22 @@ class ClassicalLaserDetector:
         )
         li = np.flatnonzero(is_leg)
         xy, sc, kd, rad, seg, lg = [], [], [], [], [], []
-        used = np.zeros(n, dtype=bool)
+        partner = np.full(n, -1, dtype=np.int64)
         if li.size >= 2:
             d = np.hypot(*(legs.xy[li, None, :] - legs.xy[None, li, :]).transpose(2, 0, 1))
             a, b = np.triu_indices(li.size, 1)
             ok = (d[a, b] >= self.pair_min) & (d[a, b] <= self.pair_max)
             a, b, dist = li[a[ok]], li[b[ok]], d[a[ok], b[ok]]
+            if apart is not None:
+                allowed = ~np.asarray(apart, dtype=bool).reshape(n, n)[a, b]
+                a, b, dist = a[allowed], b[allowed], dist[allowed]
             pa, pb = legs.scores[a], legs.scores[b]
             pair_score = 1.0 - (1.0 - pa) * (1.0 - pb)
+            if together is not None:
+                dist = dist - self.memory_keep * np.asarray(together, dtype=bool).reshape(n, n)[a, b]
             for k in _pairing(a, b, pair_score, dist):
                 i, j = a[k], b[k]
-                used[i] = used[j] = True
+                partner[i], partner[j] = j, i
                 c = (legs.xy[i] + legs.xy[j]) / 2.0
                 xy.append(c)
                 sc.append(pair_score[k])
@@ -307,7 +391,7 @@ class ClassicalLaserDetector:
                 seg.append(np.concatenate([segs_in[i], segs_in[j]]))
                 lg.append(legs.xy[[i, j]])
         behind = self.hidden_leg_offset * _along_beam(legs.xy, origin)
-        for i in np.flatnonzero((is_leg & ~used) | is_blob):
+        for i in np.flatnonzero((is_leg & (partner < 0)) | is_blob):
             single = legs.kind[i] == KIND_LEG
             factor = self.single_leg_factor if single else self.blob_factor
             xy.append(legs.xy[i] + behind[i] if single else legs.xy[i])
@@ -317,11 +401,47 @@ class ClassicalLaserDetector:
             seg.append(segs_in[i])
             lg.append(np.full((2, 2), np.nan))
         if not xy:
-            return LaserDetections.empty(with_segments=has_segs)
+            return LaserDetections.empty(with_segments=has_segs), partner
         segments = tuple(seg) if has_segs else None
-        return LaserDetections(
+        people = LaserDetections(
             np.array(xy), np.clip(sc, 0.0, 1.0), np.array(kd), np.array(rad), segments, np.array(lg)
         )
+        return people, partner
+
+    def detect_remembering(
+        self,
+        points: FloatArray,
+        *,
+        valid: NDArray[np.bool_] | None = None,
+        origin: ArrayLike = (0.0, 0.0),
+        memory: LegMemory | None = None,
+        to_fixed: ArrayLike | None = None,
+    ) -> tuple[LaserDetections, LegMemory]:
+        """People in one scan, paired with what the scanner's last scan showed (:class:`LegMemory`).
+
+        Args:
+            points, valid, origin: as :meth:`detect`.
+            memory: what this method returned for the scanner's last scan (None: the first scan).
+            to_fixed: ``(3, 3)`` homogeneous 2D transform from the frame of ``points`` to a frame fixed to the
+                world (odometry; identity for a robot that does not move).
+
+        Returns:
+            The people, as :meth:`detect`, and the memory for the scanner's next scan.
+        """
+        m = np.eye(3) if to_fixed is None else np.asarray(to_fixed, dtype=np.float64).reshape(3, 3)
+        legs = self.legs(points, valid=valid, origin=origin)
+        is_leg = np.flatnonzero((legs.kind == KIND_LEG) & (legs.scores >= self.leg_min_score))
+        fixed = legs.xy @ m[:2, :2].T + m[:2, 2]
+        apart = together = None
+        if memory is not None and self.memory_radius > 0 and is_leg.size >= 2:
+            apart, together = (np.zeros((len(legs), len(legs)), dtype=bool) for _ in range(2))
+            sub = np.ix_(is_leg, is_leg)
+            apart[sub], together[sub] = memory.relations(fixed[is_leg], self.memory_radius)
+        people, partner = self._people(legs, origin, apart, together)
+        where = np.full(len(legs), -1, dtype=np.int64)
+        where[is_leg] = np.arange(is_leg.size)
+        kept = partner[is_leg]
+        return people, LegMemory(fixed[is_leg], np.where(kept >= 0, where[np.maximum(kept, 0)], -1))
 
     # -- LaserDetector ----------------------------------------------------------------------------------
     def detect(
