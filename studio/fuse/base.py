@@ -17,10 +17,11 @@ IntArray = NDArray[np.int64]
 SOURCES = ("fused", "laser", "image")
 """``fused``: a person box confirmed by laser; ``laser``: laser only; ``image``: image only."""
 
-HOW = ("laser-detection", "scan-cluster", "foot-row", "torso-size", "laser-only")
+HOW = ("laser-detection", "scan-cluster", "foot-row", "torso-size", "laser-only", "beside-box")
 """How a position was measured: a laser people detection inside the box; the scan points inside the box
 closest to the robot; the box's foot row on the ground plane; the apparent torso length; a laser detection
-that no box confirmed."""
+that no box confirmed; a laser detection that no box took, beside the one a box took, inside that box and at
+its range (two people side by side often make one box: the camera saw someone there)."""
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,10 @@ class FusionConfig:
         cluster_sigma: 1-σ of a scan-cluster position, m.
         same_person_radius: a laser detection no box took, inside the span of a box that took one and this
             close to it, is that person's other leg (or a part of them), not someone else, m.
+        beside_box_range: a laser detection no box took, farther than ``same_person_radius`` from the one a
+            box took but inside that box's span and within this range difference of it, is someone beside
+            that person whom the camera saw in the same box (``how`` ``beside-box``: it counts as seen by
+            the camera, see ``LabelOptions.min_camera_hits``), m; 0 turns this off.
         max_range: ignore people farther than this from the camera, m.
         floor_z: height of the floor in the base frame, m.
     """
@@ -70,6 +75,7 @@ class FusionConfig:
     leg_sigma: float = 0.11
     cluster_sigma: float = 0.10
     same_person_radius: float = 0.5
+    beside_box_range: float = 0.5
     max_range: float = 12.0
     floor_z: float = 0.0
 

@@ -179,6 +179,7 @@ def fuse_frame(
     parts: list[PersonObservations] = []
     used_laser = np.zeros(n_l, dtype=bool)
     absorbed = np.zeros(n_l, dtype=bool)
+    beside = np.zeros(n_l, dtype=bool)  # inside a box that took someone else at their range
     if n_b and image is not None:
         if camera is None:
             raise ValueError("fuse_frame: image detections need the camera")
@@ -212,7 +213,9 @@ def fuse_frame(
                 # the same person's other leg (or a part of them): inside this box and next to its match
                 near = np.hypot(*(laser.xy - laser.xy[j]).T) <= cfg.same_person_radius
                 off = _offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
-                absorbed |= near & (np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac)
+                in_box = np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac
+                absorbed |= near & in_box
+                beside |= ~near & in_box & (np.abs(r_l - r_l[j]) <= cfg.beside_box_range)
                 sc = 1.0 - (1.0 - image.scores[i]) * (1.0 - laser.scores[j])
                 parts.append(
                     _one(
@@ -290,7 +293,7 @@ def fuse_frame(
                     cfg.laser_sigmas(laser.kind[rest])[:, None, None] ** 2 * np.eye(2),
                     laser.scores[rest],
                     ("laser",) * len(rest),
-                    ("laser-only",) * len(rest),
+                    tuple("beside-box" if beside[k] else "laser-only" for k in rest),
                     np.full((len(rest), 4), np.nan),
                     np.full(len(rest), -1),
                     rest,

@@ -338,12 +338,15 @@ def track_all(
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
+        how = fr.observations.how
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
             if p.det_index >= 0:
                 src = observations[fr_i].source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
-                if src in ("fused", "image"):
+                # a laser person beside someone a box took, in that box: the camera saw someone there too
+                beside = p.det_index < len(how) and how[p.det_index] == "beside-box"
+                if src in ("fused", "image") or beside:
                     camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
     camera_gate = has_camera and options.sources == "both"
     keep = set()

@@ -196,3 +196,23 @@ def test_the_other_leg_inside_a_matched_box_is_not_a_second_person() -> None:
         config=FusionConfig(same_person_radius=0.0),
     )
     assert sorted(off.source) == ["fused", "laser"]
+
+
+def test_someone_beside_a_boxed_person_in_the_same_box_is_seen_by_the_camera() -> None:
+    # two people side by side 0.6 m apart at 5 m make one box; the laser sees both: the box takes one, the
+    # other is someone the camera saw too ("beside-box"), unless farther in range or the rule is off
+    box = person(5.0, 0.3)[0]
+    box[0] -= 60.0  # the box spans both people
+    one_box = ImageDetections(box[None], np.array([0.6]), None, W, H)
+    obs = fuse_frame(one_box, laser((5.0, 0.3), (5.0, 0.9), (7.0, 0.9)), camera=CAM)
+    assert obs.source == ("fused", "laser", "laser")
+    assert obs.how[1:] == ("beside-box", "laser-only")  # the one 2 m behind is outside the range step
+    assert sorted(round(float(obs.xy[k, 1]), 2) for k in (0, 1)) == [0.3, 0.9]
+    np.testing.assert_allclose(obs.xy[2], [7.0, 0.9])
+    off = fuse_frame(
+        one_box, laser((5.0, 0.3), (5.0, 0.9)), camera=CAM, config=FusionConfig(beside_box_range=0.0)
+    )
+    assert off.how == ("laser-detection", "laser-only")
+    # outside the box's columns it is just a laser person
+    narrow = fuse_frame(dets(person(5.0, 0.3)), laser((5.0, 0.3), (5.0, 1.5)), camera=CAM)
+    assert narrow.how == ("laser-detection", "laser-only")
