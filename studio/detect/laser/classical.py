@@ -158,14 +158,18 @@ class LegMemory:
     xy: FloatArray
     partner: NDArray[np.int64]
 
-    def relations(self, xy: FloatArray, radius: float) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    def relations(
+        self, xy: FloatArray, radius: float, pair_range: tuple[float, float] = (0.0, np.inf)
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """What the last scan says about pairing the legs at ``xy`` (``(N, 2)``, fixed frame).
 
         A leg is the same leg as the nearest one of the last scan within ``radius`` metres (one to one).
 
         Returns:
-            ``apart`` ``(N, N)``: pairs of legs that were both seen last scan without being paired together
-            (they must not be paired now), and ``together`` ``(N, N)``: pairs that were paired.
+            ``apart`` ``(N, N)``: pairs of legs that were both seen last scan, ``pair_range`` metres apart
+            (they could have been paired), without being paired together: they must not be paired now.
+            Legs a long stride apart (or crossing) were unpaired for their distance alone and are not kept
+            apart. And ``together`` ``(N, N)``: pairs that were paired.
         """
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         n = len(xy)
@@ -180,9 +184,11 @@ class LegMemory:
             if d[r, c] <= radius:
                 same[r] = c
         seen = np.flatnonzero(same >= 0)
+        was = self.xy[same[seen]]
+        gap = np.hypot(*(was[:, None, :] - was[None, :, :]).transpose(2, 0, 1))
         paired = self.partner[same[seen]][:, None] == same[seen][None, :]
         together[np.ix_(seen, seen)] = paired
-        apart[np.ix_(seen, seen)] = ~paired
+        apart[np.ix_(seen, seen)] = ~paired & (gap >= pair_range[0]) & (gap <= pair_range[1])
         np.fill_diagonal(apart, False)
         return apart, together
 
@@ -436,7 +442,9 @@ class ClassicalLaserDetector:
         if memory is not None and self.memory_radius > 0 and is_leg.size >= 2:
             apart, together = (np.zeros((len(legs), len(legs)), dtype=bool) for _ in range(2))
             sub = np.ix_(is_leg, is_leg)
-            apart[sub], together[sub] = memory.relations(fixed[is_leg], self.memory_radius)
+            apart[sub], together[sub] = memory.relations(
+                fixed[is_leg], self.memory_radius, (self.pair_min, self.pair_max)
+            )
         people, partner = self._people(legs, origin, apart, together)
         where = np.full(len(legs), -1, dtype=np.int64)
         where[is_leg] = np.arange(is_leg.size)

@@ -139,3 +139,19 @@ def test_a_pair_across_two_people_is_undone_when_their_other_legs_show(legs_afte
         assert len(pairs) == len(legs_after) // 2
         assert all(min(abs(y - c) for c in own) < 0.03 for y in pairs)
         assert not np.any(np.abs(pairs) < 0.1)  # nothing between the two
+
+
+def test_legs_too_far_apart_to_pair_last_scan_are_not_kept_apart() -> None:
+    # a long stride: 0.7 m between the legs, unpaired for their distance alone; then 0.4 m
+    memory = _memory([(3.0, 0.0), (3.0, 0.7)], [-1, -1])
+    apart, _ = memory.relations(np.array([[3.0, 0.1], [3.0, 0.5]]), 0.2, (0.1, 0.6))
+    assert not apart.any()
+    apart, _ = memory.relations(np.array([[3.0, 0.1], [3.0, 0.5]]), 0.2)  # any distance counts
+    assert apart[0, 1]
+    det = ClassicalLaserDetector()
+    kinds = []
+    for gap in (0.7, 0.45, 0.3):
+        pts, valid = cast(circles=[(3.0, 0.0, R), (3.0, gap, R)], walls=WALL)
+        people, memory = det.detect_remembering(pts, valid=valid, memory=None if gap == 0.7 else memory)
+        kinds.append(people.kind.tolist())
+    assert kinds == [[KIND_LEG, KIND_LEG], [KIND_PAIR], [KIND_PAIR]]
