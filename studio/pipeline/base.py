@@ -49,9 +49,11 @@ class LabelOptions:
             (:mod:`studio.geometry.scan_match`; without odometry it is the robot's only motion estimate); the
             static map and the tracker work in the corrected frame, the outputs stay in the odometry frame.
         min_camera_hits: on rigs with a camera and ``sources=both``, a track must be confirmed by the camera
-            (a fused or image observation) in at least this many frames, else it is dropped as laser clutter.
+            (a fused or image observation, or a laser one ``beside-box``: inside a box that took someone
+            beside it, see ``FusionConfig.beside_box_range``) in at least this many frames, else it is
+            dropped as laser clutter.
         camera_support_s: on rigs with a camera and ``sources=both``, a track is output at a frame only if
-            the camera saw it (fused or image observation) within this many seconds before or after; this
+            the camera saw it (as for ``min_camera_hits``) within this many seconds before or after; this
             cuts the stretches where a track left its person and followed laser clutter, s.
         min_track_s: tracks shorter than this are dropped, s.
         fusion: association parameters.

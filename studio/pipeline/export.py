@@ -95,13 +95,16 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         f"- method `{options.method}`, sources `{options.sources}`, image detector "
         f"`{options.image_detector or 'movenet'}`, laser detector `{options.laser_detector or 'classical'}`",
         "- people boxes on perspective views around the horizon, mapped back to the panorama;",
-        "  laser people from a classical leg detector with a static-world filter; fused on the sphere",
+        "  laser people from a classical leg detector (legs paired with the previous scans) with a",
+        "  static-world filter; fused on the sphere",
         "  with the camera pose above; tracked in the odom frame, corrected by scan matching (UKF, global",
         "  nearest neighbour); positions in the odom frame are given in the recording's own odometry,",
         "  tracks RTS-smoothed, tracklets stitched.",
         f"- {n_labels} person labels; by source: "
         + ", ".join(f"{k} {v} ({100.0 * v / max(n_labels, 1):.0f} %)" for k, v in sources.most_common()),
-        "  (`fused`: box confirmed by laser; `laser`: laser only; `image`: range from the box's foot row;",
+        "  (`fused`: box confirmed by laser; `laser`: laser only, on a rig with a camera output only near",
+        "  frames where the camera saw that person, alone or in one box with someone beside them; `image`:",
+        "  range from the box's foot row;",
         '  people marked `"interpolated": true` in labels.jsonl bridge a short gap with the smoother)',
         "",
         "## Known limits",

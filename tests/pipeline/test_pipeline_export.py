@@ -1,0 +1,56 @@
+"""``--export-frames``: the run directory is a self-contained dataset (panoramas, COCO boxes with track ids,
+the labels, a dataset card)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import pytest
+
+from studio.commands.label import run_label
+from studio.labels import read_labels
+from studio.pipeline import LabelOptions
+
+
+@pytest.fixture(scope="module")
+def run(recording: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("export") / "run"
+    run_label(
+        recording / "recording.mcap",
+        recording / "rig.yaml",
+        out,
+        options=LabelOptions(export_frames=True),
+        write_rrd=False,
+        quiet=True,
+    )
+    return out
+
+
+def test_every_labelled_frame_has_its_panorama(run: Path) -> None:
+    coco = json.loads((run / "boxes_coco.json").read_text())
+    labels = read_labels(run / "labels.jsonl")
+    assert len(coco["images"]) == len(labels) > 0
+    for image in coco["images"]:
+        pano = cv2.imread(str(run / image["file_name"]))
+        assert pano is not None, image["file_name"]
+        assert pano.shape[:2] == (image["height"], image["width"]) == (960, 1920)
+    assert len(list((run / "frames").glob("*.jpg"))) == len(coco["images"])
+
+
+def test_boxes_carry_track_ids_and_world_positions(run: Path) -> None:
+    coco = json.loads((run / "boxes_coco.json").read_text())
+    assert coco["annotations"]
+    ids = {p.id for f in read_labels(run / "labels.jsonl") for p in f.people}
+    for a in coco["annotations"]:
+        assert a["track_id"] in ids
+        assert len(a["position_base"]) == 2
+        assert a["image_id"] in {im["id"] for im in coco["images"]}
+
+
+def test_the_dataset_card_says_how_the_labels_were_made(run: Path) -> None:
+    card = (run / "DATASET.md").read_text()
+    for part in ("## How the labels were produced", "## Known limits", "person labels; by source"):
+        assert part in card
+    assert "movenet" in card
