@@ -139,58 +139,95 @@ def _along_beam(xy: FloatArray, origin: ArrayLike) -> FloatArray:
     return np.divide(d, n, out=np.zeros_like(d), where=n > 0)
 
 
+_FORGET = 0.9  # per scan: what the scans before say fades over about ten scans (1 s at 10 Hz)
+
+
 @dataclass(frozen=True)
 class LegMemory:
-    """The legs of one scanner's last scan, in a frame fixed to the world, and how they were paired.
+    """The legs of one scanner's last scan, in a frame fixed to the world, followed from scan to scan, and how
+    often each two of them were paired when they could have been.
 
     Where the legs of two people stand in a row about 0.2 m apart (people side by side), one scan cannot
-    tell whose leg is whose, and pairing the two inner legs makes one person between the two. The scans
-    before can tell: two legs that were both seen in the last scan without being paired together are not
-    paired now (when the other leg of one of them is hidden, the two left are not one person), and two
-    that were paired are preferred (:attr:`ClassicalLaserDetector.memory_keep`). A pair is never forced:
-    the first scan of two people may pair across them, and their next scans, with more legs, undo it.
+    tell whose leg is whose: as soon as one leg hides, the two left (one of each) make one person between
+    the two. The scans before can tell. Each scan is also paired on its own, and for every two legs seen
+    within pairing distance the memory counts how often that pairing joined them (counts fade by
+    :data:`_FORGET` per scan). Two legs that were mostly apart are not paired now, and two that
+    were mostly paired are preferred (:attr:`ClassicalLaserDetector.memory_keep`). The counts come from
+    each scan's own pairing, not from the pairing the memory chose, so one wrong choice is not kept alive
+    by itself.
 
     Attributes:
         xy: ``(M, 2)`` leg positions in the fixed frame (odometry), metres.
-        partner: ``(M,)`` index of the leg each one was paired with, -1 unpaired.
+        ids: ``(M,)`` which leg each one is (the same number from scan to scan while it is followed).
+        counts: ``{(id_a, id_b): (seen, paired)}`` with ``id_a < id_b``, for legs of the last scan: (faded)
+            scans in which both were seen within pairing distance, and in which each scan's own pairing
+            joined them.
+        next_id: the number the next new leg gets.
     """
 
     xy: FloatArray
-    partner: NDArray[np.int64]
+    ids: NDArray[np.int64]
+    counts: dict[tuple[int, int], tuple[float, float]]
+    next_id: int
+
+    @staticmethod
+    def empty() -> LegMemory:
+        return LegMemory(np.zeros((0, 2)), np.zeros(0, np.int64), {}, 0)
+
+    def follow(self, xy: FloatArray, radius: float) -> tuple[NDArray[np.int64], int]:
+        """Ids of the legs at ``xy`` (``(N, 2)``, fixed frame): that of the nearest leg of the last scan
+        within ``radius`` metres (one to one), else a new one. Returns the ids and the next free id."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        ids = np.full(len(xy), -1, dtype=np.int64)
+        if len(xy) and len(self.xy) and radius > 0:
+            d = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
+            rows, cols = linear_sum_assignment(np.where(d <= radius, d, 1e6))
+            for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
+                if d[r, c] <= radius:
+                    ids[r] = self.ids[c]
+        new = np.flatnonzero(ids < 0)
+        ids[new] = self.next_id + np.arange(len(new))
+        return ids, self.next_id + len(new)
 
     def relations(
-        self, xy: FloatArray, radius: float, pair_range: tuple[float, float] = (0.0, np.inf)
+        self, ids: NDArray[np.int64], *, min_seen: float, share: float
     ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-        """What the last scan says about pairing the legs at ``xy`` (``(N, 2)``, fixed frame).
-
-        A leg is the same leg as the nearest one of the last scan within ``radius`` metres (one to one).
-
-        Returns:
-            ``apart`` ``(N, N)``: pairs of legs that were both seen last scan, ``pair_range`` metres apart
-            (they could have been paired), without being paired together: they must not be paired now.
-            Legs a long stride apart (or crossing) were unpaired for their distance alone and are not kept
-            apart. And ``together`` ``(N, N)``: pairs that were paired.
-        """
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        n = len(xy)
+        """``apart`` and ``together``, ``(N, N)`` over legs with these ``ids``: pairs seen within pairing
+        distance in at least ``min_seen`` (faded) scans and joined in at most / at least a ``share`` /
+        ``1 - share`` of them."""
+        n = len(ids)
         apart = np.zeros((n, n), dtype=bool)
         together = np.zeros((n, n), dtype=bool)
-        if not n or not len(self.xy) or radius <= 0:
-            return apart, together
-        d = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
-        rows, cols = linear_sum_assignment(np.where(d <= radius, d, 1e6))
-        same = np.full(n, -1)  # the leg of the last scan each leg is
-        for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
-            if d[r, c] <= radius:
-                same[r] = c
-        seen = np.flatnonzero(same >= 0)
-        was = self.xy[same[seen]]
-        gap = np.hypot(*(was[:, None, :] - was[None, :, :]).transpose(2, 0, 1))
-        paired = self.partner[same[seen]][:, None] == same[seen][None, :]
-        together[np.ix_(seen, seen)] = paired
-        apart[np.ix_(seen, seen)] = ~paired & (gap >= pair_range[0]) & (gap <= pair_range[1])
-        np.fill_diagonal(apart, False)
+        for i in range(n):
+            for j in range(i + 1, n):
+                seen, paired = self.counts.get((min(ids[i], ids[j]), max(ids[i], ids[j])), (0.0, 0.0))
+                if seen >= min_seen:
+                    apart[i, j] = apart[j, i] = paired <= share * seen
+                    together[i, j] = together[j, i] = paired >= (1.0 - share) * seen
         return apart, together
+
+    def after(
+        self,
+        xy: FloatArray,
+        ids: NDArray[np.int64],
+        next_id: int,
+        in_range: NDArray[np.bool_],
+        paired: NDArray[np.bool_],
+    ) -> LegMemory:
+        """The memory after a scan with legs at ``xy`` (``ids``): ``in_range`` and ``paired`` ``(N, N)`` say
+        which two were within pairing distance and which two the scan's own pairing joined."""
+        counts: dict[tuple[int, int], tuple[float, float]] = {}
+        n = len(ids)
+        for i in range(n):
+            for j in range(i + 1, n):
+                key = (min(ids[i], ids[j]), max(ids[i], ids[j]))
+                seen, both = self.counts.get(key, (0.0, 0.0))
+                seen, both = _FORGET * seen, _FORGET * both
+                if in_range[i, j]:
+                    seen, both = seen + 1.0, both + float(paired[i, j])
+                if seen > 0.05:
+                    counts[key] = (seen, both)
+        return LegMemory(np.asarray(xy, dtype=np.float64).reshape(-1, 2), ids, counts, next_id)
 
 
 _EXACT_PAIRING_MAX = 10  # legs in one group of pairable legs searched exhaustively
@@ -276,9 +313,12 @@ class ClassicalLaserDetector:
         memory_radius: over time (:meth:`detect_remembering`), a leg this close to one of the scanner's last
             scan (in the fixed frame) is the same leg, metres; 0 pairs every scan on its own. A walker's
             legs move 0.1–0.2 m between scans at 10 Hz (the swinging one up to twice the body's speed).
-        memory_keep: two legs paired in the last scan count as this much closer together when they are
-            paired again, metres. Less than the gap between a person's own legs and a pair across two
-            people walking side by side (≈ 0.25 m), so more legs seen undo a pair made across them.
+        memory_keep: two legs mostly paired in the scans before count as this much closer together,
+            metres (a preference, never a constraint).
+        memory_min_seen: the memory has a say on two legs once they were seen within pairing distance, with
+            a choice, in this many (faded) scans.
+        memory_share: two legs joined in at most this share of those scans are kept apart; joined in at
+            least ``1 - memory_share``, they are preferred.
         model: the leg likelihood.
     """
 
@@ -295,6 +335,8 @@ class ClassicalLaserDetector:
     hidden_leg_offset: float = 0.045
     memory_radius: float = 0.3
     memory_keep: float = 0.2
+    memory_min_seen: float = 2.0
+    memory_share: float = 0.35
     model: LegModel = LEG_MODEL
 
     def __post_init__(self) -> None:
@@ -436,20 +478,29 @@ class ClassicalLaserDetector:
         """
         m = np.eye(3) if to_fixed is None else np.asarray(to_fixed, dtype=np.float64).reshape(3, 3)
         legs = self.legs(points, valid=valid, origin=origin)
+        memory = memory if memory is not None else LegMemory.empty()
         is_leg = np.flatnonzero((legs.kind == KIND_LEG) & (legs.scores >= self.leg_min_score))
-        fixed = legs.xy @ m[:2, :2].T + m[:2, 2]
-        apart = together = None
-        if memory is not None and self.memory_radius > 0 and is_leg.size >= 2:
+        fixed = (legs.xy @ m[:2, :2].T + m[:2, 2])[is_leg]
+        ids, next_id = memory.follow(fixed, self.memory_radius)
+        # this scan on its own: what the memory learns from (never from its own choices)
+        people, partner = self._people(legs, origin, None, None)
+        if self.memory_radius > 0 and is_leg.size >= 2:
             apart, together = (np.zeros((len(legs), len(legs)), dtype=bool) for _ in range(2))
             sub = np.ix_(is_leg, is_leg)
             apart[sub], together[sub] = memory.relations(
-                fixed[is_leg], self.memory_radius, (self.pair_min, self.pair_max)
+                ids, min_seen=self.memory_min_seen, share=self.memory_share
             )
-        people, partner = self._people(legs, origin, apart, together)
-        where = np.full(len(legs), -1, dtype=np.int64)
-        where[is_leg] = np.arange(is_leg.size)
-        kept = partner[is_leg]
-        return people, LegMemory(fixed[is_leg], np.where(kept >= 0, where[np.maximum(kept, 0)], -1))
+            if apart.any() or together.any():
+                people = self._people(legs, origin, apart, together)[0]
+        gap = np.hypot(*(fixed[:, None, :] - fixed[None, :, :]).transpose(2, 0, 1))
+        in_range = (gap >= self.pair_min) & (gap <= self.pair_max)
+        pos = np.full(len(legs), -1, dtype=np.int64)
+        pos[is_leg] = np.arange(is_leg.size)
+        mate = partner[is_leg]
+        joined = np.zeros((is_leg.size, is_leg.size), dtype=bool)
+        has = np.flatnonzero(mate >= 0)
+        joined[has, pos[mate[has]]] = True
+        return people, memory.after(fixed, ids, next_id, in_range, joined)
 
     # -- LaserDetector ----------------------------------------------------------------------------------
     def detect(
