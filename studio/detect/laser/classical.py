@@ -9,9 +9,9 @@
    labelled scans of ``leg_tracker`` (``bench/laser_sweep.py`` reproduces them); no weights are downloaded.
 3. Legs 0.1–0.6 m apart pair into one person at their midpoint; wide person-like segments are one
    person (legs together, skirts, coats); unpaired legs are persons with a lower score.
-4. Over time (:meth:`ClassicalLaserDetector.detect_remembering`), the pairing of the previous scan
-   carries over (:class:`LegMemory`): where the legs of two people stand in a row 0.2 m apart, one scan
-   alone cannot tell whose leg is whose, but the scans before it can.
+4. Over time (:meth:`ClassicalLaserDetector.detect_remembering`), legs are followed from scan to scan and
+   two legs that the scans before mostly kept apart stay apart (:class:`LegMemory`): where the legs of two
+   people stand in a row 0.2 m apart, one scan alone cannot tell whose leg is whose, the scans before can.
 
 Several scanners: :meth:`ClassicalLaserDetector.detect_scans` detects per scan (each in the common frame
 with its sensor origin) and merges detections closer than ``merge_radius``.
@@ -315,8 +315,8 @@ class ClassicalLaserDetector:
             legs move 0.1–0.2 m between scans at 10 Hz (the swinging one up to twice the body's speed).
         memory_keep: two legs mostly paired in the scans before count as this much closer together,
             metres (a preference, never a constraint).
-        memory_min_seen: the memory has a say on two legs once they were seen within pairing distance, with
-            a choice, in this many (faded) scans.
+        memory_min_seen: the memory has a say on two legs once they were seen within pairing distance in
+            this many (faded) scans.
         memory_share: two legs joined in at most this share of those scans are kept apart; joined in at
             least ``1 - memory_share``, they are preferred.
         model: the leg likelihood.
