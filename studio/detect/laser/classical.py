@@ -158,76 +158,64 @@ class LegMemory:
 
     Attributes:
         xy: ``(M, 2)`` leg positions in the fixed frame (odometry), metres.
-        ids: ``(M,)`` which leg each one is (the same number from scan to scan while it is followed).
-        counts: ``{(id_a, id_b): (seen, paired)}`` with ``id_a < id_b``, for legs of the last scan: (faded)
-            scans in which both were seen within pairing distance, and in which each scan's own pairing
-            joined them.
-        next_id: the number the next new leg gets.
+        seen: ``(M, M)`` for each two legs, the (faded) number of scans in which both were seen within
+            pairing distance.
+        joined: ``(M, M)`` of those, the (faded) number in which each scan's own pairing joined them.
     """
 
     xy: FloatArray
-    ids: NDArray[np.int64]
-    counts: dict[tuple[int, int], tuple[float, float]]
-    next_id: int
+    seen: FloatArray
+    joined: FloatArray
 
     @staticmethod
     def empty() -> LegMemory:
-        return LegMemory(np.zeros((0, 2)), np.zeros(0, np.int64), {}, 0)
+        return LegMemory(np.zeros((0, 2)), np.zeros((0, 0)), np.zeros((0, 0)))
 
-    def follow(self, xy: FloatArray, radius: float) -> tuple[NDArray[np.int64], int]:
-        """Ids of the legs at ``xy`` (``(N, 2)``, fixed frame): that of the nearest leg of the last scan
-        within ``radius`` metres (one to one), else a new one. Returns the ids and the next free id."""
+    def follow(self, xy: FloatArray, radius: float) -> NDArray[np.int64]:
+        """``(N,)`` for each leg at ``xy`` (``(N, 2)``, fixed frame), the leg of the last scan it is: the
+        nearest within ``radius`` metres, one to one; -1 for a new leg."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        ids = np.full(len(xy), -1, dtype=np.int64)
+        was = np.full(len(xy), -1, dtype=np.int64)
         if len(xy) and len(self.xy) and radius > 0:
             d = np.hypot(*(xy[:, None, :] - self.xy[None, :, :]).transpose(2, 0, 1))
             rows, cols = linear_sum_assignment(np.where(d <= radius, d, 1e6))
-            for r, c in zip(rows.tolist(), cols.tolist(), strict=True):
-                if d[r, c] <= radius:
-                    ids[r] = self.ids[c]
-        new = np.flatnonzero(ids < 0)
-        ids[new] = self.next_id + np.arange(len(new))
-        return ids, self.next_id + len(new)
+            ok = d[rows, cols] <= radius
+            was[rows[ok]] = cols[ok]
+        return was
+
+    def _carried(self, was: NDArray[np.int64]) -> tuple[FloatArray, FloatArray]:
+        """The counts of the legs ``was`` points at (zero for new legs), ``(N, N)`` each."""
+        n = len(was)
+        seen, joined = np.zeros((n, n)), np.zeros((n, n))
+        old = np.flatnonzero(was >= 0)
+        if old.size:
+            sub = np.ix_(old, old)
+            seen[sub] = self.seen[np.ix_(was[old], was[old])]
+            joined[sub] = self.joined[np.ix_(was[old], was[old])]
+        return seen, joined
 
     def relations(
-        self, ids: NDArray[np.int64], *, min_seen: float, share: float
+        self, was: NDArray[np.int64], *, min_seen: float, share: float
     ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-        """``apart`` and ``together``, ``(N, N)`` over legs with these ``ids``: pairs seen within pairing
-        distance in at least ``min_seen`` (faded) scans and joined in at most / at least a ``share`` /
-        ``1 - share`` of them."""
-        n = len(ids)
-        apart = np.zeros((n, n), dtype=bool)
-        together = np.zeros((n, n), dtype=bool)
-        for i in range(n):
-            for j in range(i + 1, n):
-                seen, paired = self.counts.get((min(ids[i], ids[j]), max(ids[i], ids[j])), (0.0, 0.0))
-                if seen >= min_seen:
-                    apart[i, j] = apart[j, i] = paired <= share * seen
-                    together[i, j] = together[j, i] = paired >= (1.0 - share) * seen
-        return apart, together
+        """``apart`` and ``together``, ``(N, N)`` over legs that were the legs ``was`` of the last scan
+        (:meth:`follow`): two legs seen within pairing distance in at least ``min_seen`` (faded) scans and
+        joined in at most a ``share`` / at least ``1 - share`` of them."""
+        seen, joined = self._carried(was)
+        known = seen >= min_seen
+        return known & (joined <= share * seen), known & (joined >= (1.0 - share) * seen)
 
     def after(
-        self,
-        xy: FloatArray,
-        ids: NDArray[np.int64],
-        next_id: int,
-        in_range: NDArray[np.bool_],
-        paired: NDArray[np.bool_],
+        self, xy: FloatArray, was: NDArray[np.int64], in_range: NDArray[np.bool_], paired: NDArray[np.bool_]
     ) -> LegMemory:
-        """The memory after a scan with legs at ``xy`` (``ids``): ``in_range`` and ``paired`` ``(N, N)`` say
-        which two were within pairing distance and which two the scan's own pairing joined."""
-        counts: dict[tuple[int, int], tuple[float, float]] = {}
-        n = len(ids)
-        for i in range(n):
-            for j in range(i + 1, n):
-                key = (min(ids[i], ids[j]), max(ids[i], ids[j]))
-                seen, both = self.counts.get(key, (0.0, 0.0))
-                seen, both = _FORGET * seen, _FORGET * both
-                if in_range[i, j]:
-                    seen, both = seen + 1.0, both + float(paired[i, j])
-                if seen > 0.05:
-                    counts[key] = (seen, both)
-        return LegMemory(np.asarray(xy, dtype=np.float64).reshape(-1, 2), ids, counts, next_id)
+        """The memory after a scan with legs at ``xy`` that were the legs ``was`` of the last scan:
+        ``in_range`` and ``paired`` ``(N, N)`` say which two were within pairing distance and which two the
+        scan's own pairing joined."""
+        seen, joined = self._carried(was)
+        return LegMemory(
+            np.asarray(xy, dtype=np.float64).reshape(-1, 2),
+            _FORGET * seen + in_range,
+            _FORGET * joined + (in_range & paired),
+        )
 
 
 _EXACT_PAIRING_MAX = 10  # legs in one group of pairable legs searched exhaustively
@@ -481,14 +469,14 @@ class ClassicalLaserDetector:
         memory = memory if memory is not None else LegMemory.empty()
         is_leg = np.flatnonzero((legs.kind == KIND_LEG) & (legs.scores >= self.leg_min_score))
         fixed = (legs.xy @ m[:2, :2].T + m[:2, 2])[is_leg]
-        ids, next_id = memory.follow(fixed, self.memory_radius)
+        was = memory.follow(fixed, self.memory_radius)
         # this scan on its own: what the memory learns from (never from its own choices)
         people, partner = self._people(legs, origin, None, None)
         if self.memory_radius > 0 and is_leg.size >= 2:
             apart, together = (np.zeros((len(legs), len(legs)), dtype=bool) for _ in range(2))
             sub = np.ix_(is_leg, is_leg)
             apart[sub], together[sub] = memory.relations(
-                ids, min_seen=self.memory_min_seen, share=self.memory_share
+                was, min_seen=self.memory_min_seen, share=self.memory_share
             )
             if apart.any() or together.any():
                 people = self._people(legs, origin, apart, together)[0]
@@ -500,7 +488,7 @@ class ClassicalLaserDetector:
         joined = np.zeros((is_leg.size, is_leg.size), dtype=bool)
         has = np.flatnonzero(mate >= 0)
         joined[has, pos[mate[has]]] = True
-        return people, memory.after(fixed, ids, next_id, in_range, joined)
+        return people, memory.after(fixed, was, in_range, joined)
 
     # -- LaserDetector ----------------------------------------------------------------------------------
     def detect(

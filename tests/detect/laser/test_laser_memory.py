@@ -19,30 +19,27 @@ def _scan_memory(*scans: tuple[list[tuple[float, float]], list[tuple[int, int]]]
     memory = LegMemory.empty()
     for xy, pairs in scans:
         a = np.array(xy, float)
-        ids, next_id = memory.follow(a, 0.2)
+        was = memory.follow(a, 0.2)
         gap = np.hypot(*(a[:, None] - a[None]).transpose(2, 0, 1))
         joined = np.zeros((len(a), len(a)), bool)
         for i, j in pairs:
             joined[i, j] = joined[j, i] = True
-        memory = memory.after(a, ids, next_id, (gap >= 0.1) & (gap <= 0.6), joined)
+        memory = memory.after(a, was, (gap >= 0.1) & (gap <= 0.6), joined)
     return memory
 
 
 def test_legs_are_followed_one_to_one_within_the_radius() -> None:
     memory = _scan_memory(([(3.0, 2.0), (5.0, 0.0)], []))
-    ids, next_id = memory.follow(np.array([[3.0, 2.05], [3.0, 1.9], [5.0, 0.05], [8.0, 0.0]]), 0.2)
-    assert ids[0] == memory.ids[0]
-    assert ids[2] == memory.ids[1]
-    assert len(set(ids.tolist())) == 4  # the farther one near (3, 2) and the one at (8, 0) are new
-    assert next_id == memory.next_id + 2
+    was = memory.follow(np.array([[3.0, 2.05], [3.0, 1.9], [5.0, 0.05], [8.0, 0.0]]), 0.2)
+    # the nearer of two legs near (3, 2) is that leg, the other and the one at (8, 0) are new
+    assert was.tolist() == [0, -1, 1, -1]
 
 
 def test_legs_mostly_paired_are_together_mostly_apart_are_apart() -> None:
     # three legs in a row for three scans, each scan pairing the outer two... of B, A's leg alone
     xy = [(3.0, 1.8), (3.0, 2.0), (3.0, 2.2)]
     memory = _scan_memory((xy, [(1, 2)]), (xy, [(1, 2)]), (xy, [(0, 1)]), (xy, [(1, 2)]))
-    ids, _ = memory.follow(np.array(xy), 0.2)
-    apart, together = memory.relations(ids, min_seen=2.0, share=0.3)
+    apart, together = memory.relations(memory.follow(np.array(xy), 0.2), min_seen=2.0, share=0.3)
     assert together[1, 2]
     assert together[2, 1]
     assert apart[0, 1]
@@ -50,8 +47,7 @@ def test_legs_mostly_paired_are_together_mostly_apart_are_apart() -> None:
     assert not together[0, 1]
     # seen too rarely: no word either way
     short = _scan_memory((xy, [(1, 2)]))
-    ids, _ = short.follow(np.array(xy), 0.2)
-    apart, together = short.relations(ids, min_seen=2.0, share=0.3)
+    apart, together = short.relations(short.follow(np.array(xy), 0.2), min_seen=2.0, share=0.3)
     assert not apart.any()
     assert not together.any()
 
@@ -59,12 +55,10 @@ def test_legs_mostly_paired_are_together_mostly_apart_are_apart() -> None:
 def test_counts_fade_and_count_only_legs_that_could_have_paired() -> None:
     far = [(3.0, 0.0), (3.0, 0.7)]  # a long stride: too far apart to pair
     memory = _scan_memory((far, []), (far, []), (far, []))
-    ids, _ = memory.follow(np.array(far), 0.2)
-    assert not memory.relations(ids, min_seen=0.5, share=0.3)[0].any()
+    assert not memory.relations(memory.follow(np.array(far), 0.2), min_seen=0.5, share=0.3)[0].any()
     near = [(3.0, 0.0), (3.0, 0.3)]
     memory = _scan_memory(*([(near, [])] * 3), *([(near, [(0, 1)])] * 20))
-    ids, _ = memory.follow(np.array(near), 0.2)
-    apart, together = memory.relations(ids, min_seen=2.0, share=0.3)
+    apart, together = memory.relations(memory.follow(np.array(near), 0.2), min_seen=2.0, share=0.3)
     assert together[0, 1]  # the three scans apart faded away
     assert not apart[0, 1]
 
