@@ -80,9 +80,8 @@ def laser_again(frames: list[Any]) -> list[Any]:
     out = []
     memory: dict[int, Any] = {}  # each scan's legs paired with the scanner's last scan, as in perceive
     for f in frames:
-        before = dict(memory)
         laser, z = detect_again(f, detector, memory=memory)
-        out.append(replace(f, laser=laser, laser_z=z, leg_memory=before))
+        out.append(replace(f, laser=laser, laser_z=z))
     return out
 
 

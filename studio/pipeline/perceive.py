@@ -112,9 +112,6 @@ class PerceptionFrame:
     origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
     # T_world_base: the odometry pose corrected by scan matching (None: robot_pose, no correction)
     track_pose: Pose2 | None = None
-    # per scanner, the legs of its previous scan the laser detector paired this frame's legs with
-    # (``LegMemory``, in the odometry frame; None for detectors that look at one scan at a time)
-    leg_memory: dict[int, Any] | None = None
 
     @property
     def world_pose(self) -> Pose2:
@@ -134,16 +131,12 @@ def _detect_scan(
     memory: dict[int, Any] | None,
     k: int,
     to_fixed: FloatArray,
-    *,
-    update: bool,
 ) -> LaserDetections:
-    """One scan through ``detector``; with ``memory`` (per scanner) paired with scanner ``k``'s last scan,
-    and the memory updated in place when ``update``."""
+    """One scan through ``detector``; with ``memory`` (per scanner, updated in place) paired with scanner
+    ``k``'s last scan."""
     if memory is None or not remembers_legs(detector):
         return detector.detect(points, valid=valid)
-    det, after = detector.detect_remembering(points, valid=valid, memory=memory.get(k), to_fixed=to_fixed)
-    if update:
-        memory[k] = after
+    det, memory[k] = detector.detect_remembering(points, valid=valid, memory=memory.get(k), to_fixed=to_fixed)
     return det
 
 
@@ -170,7 +163,7 @@ def laser_in_base(
         valid = scan.valid()
         pose = sib.sensor_pose
         m = pose.to_pose2().matrix()
-        det = _detect_scan(detector, pts2, valid, memory, k, frame.robot_pose.matrix() @ m, update=True)
+        det = _detect_scan(detector, pts2, valid, memory, k, frame.robot_pose.matrix() @ m)
         parts.append(det.transformed(m))
         p3 = np.zeros((len(pts2), 3))
         p3[:, :2] = np.nan_to_num(pts2)
@@ -215,9 +208,11 @@ def detect_again(
     """Run ``detector`` again on the frame's stored scans, without the points ``drop`` marks.
 
     Each scan goes to the detector in the base frame's orientation with its scanner at the origin (what
-    the classical detector needs; a detector that reads beam order and ranges sees the same scan). Legs
-    are paired with the previous scans as in :func:`perceive`: with ``memory`` (per scanner, updated in
-    place; to run every frame again in order), else with the frame's own :attr:`PerceptionFrame.leg_memory`.
+    the classical detector needs; a detector that reads beam order and ranges sees the same scan). With
+    ``memory`` (per scanner, updated in place), legs are paired with the previous scans as in
+    :func:`perceive` (to run every frame again in order); without, each scan on its own (a frame detected
+    again alone, e.g. without structure points: the memory is not kept per frame, it would grow with the
+    recording).
 
     Returns:
         The merged detections (segments index ``f.points``) and each one's scan-plane height, as
@@ -235,10 +230,9 @@ def detect_again(
             detector,
             np.where(valid[:, None], pts, np.nan),
             valid,
-            f.leg_memory if memory is None else memory,
+            memory,
             k,
             f.robot_pose.matrix() @ shift,
-            update=memory is not None,
         )
         parts.append(det.transformed(shift))
         offsets.append(int(sel[0]) if len(sel) else 0)
@@ -374,7 +368,6 @@ def perceive(
                 columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
                 job = pool.submit(detect_image, image_detector, pano, columns)
             t2 = time.perf_counter()
-            memory_before = None if leg_memory is None else dict(leg_memory)
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector, leg_memory)
             else:
@@ -386,7 +379,6 @@ def perceive(
             pf = PerceptionFrame(
                 frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
-            pf.leg_memory = memory_before
             if matcher is not None and laser is not None:
                 pf.track_pose = matcher.step(
                     off_people(points, laser), frame.robot_pose if has_odometry else None
