@@ -332,6 +332,13 @@ class ClassicalLaserDetector:
             raise LaserDetectorError(f"need 0 <= pair_min < pair_max, got {self.pair_min}, {self.pair_max}")
         if not self.model.coef:
             raise LaserDetectorError("the classical laser detector has no leg model coefficients")
+        if self.memory_radius < 0 or self.memory_keep < 0 or self.memory_min_seen <= 0:
+            raise LaserDetectorError(
+                "need memory_radius >= 0, memory_keep >= 0, memory_min_seen > 0, got "
+                f"{self.memory_radius}, {self.memory_keep}, {self.memory_min_seen}"
+            )
+        if not 0.0 <= self.memory_share < 0.5:
+            raise LaserDetectorError(f"need 0 <= memory_share < 0.5, got {self.memory_share}")
 
     # -- stages ---------------------------------------------------------------------------------------
     def segments(

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from laser_synth import cast
 
-from studio.detect.laser import KIND_LEG, KIND_PAIR
+from studio.detect.laser import KIND_LEG, KIND_PAIR, LaserDetectorError
 from studio.detect.laser.classical import ClassicalLaserDetector, LegMemory
 
 R = 0.06  # leg radius
@@ -145,3 +145,12 @@ def test_a_pair_across_two_people_is_undone_when_their_other_legs_show(legs_afte
         assert len(pairs) == len(legs_after) // 2
         assert all(min(abs(y - c) for c in own) < 0.03 for y in pairs)
         assert not np.any(np.abs(pairs) < 0.1)  # nothing between the two
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"memory_radius": -0.1}, {"memory_keep": -0.2}, {"memory_min_seen": 0.0}, {"memory_share": 0.5}],
+)
+def test_bad_memory_settings_are_refused(bad) -> None:
+    with pytest.raises(LaserDetectorError, match="memory_"):
+        ClassicalLaserDetector(**bad)
