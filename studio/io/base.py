@@ -121,6 +121,15 @@ class LaserScan:
         with np.errstate(invalid="ignore"):
             return np.isfinite(r) & (r >= self.range_min) & (r <= self.range_max)
 
+    def open(self) -> NDArray[np.bool_]:
+        """Mask (N,) of beams that met nothing within ``range_max``: ``+inf`` (REP 117) or a finite value
+        beyond ``range_max``. The space along them is free up to ``range_max``. NaN, ``-inf`` and values
+        below ``range_min`` are errors or too close, and say nothing (older drivers also write a small value
+        for "no return"; it cannot be told from an error)."""
+        r = self.ranges
+        with np.errstate(invalid="ignore"):
+            return np.isposinf(r) | (np.isfinite(r) & (r > self.range_max))
+
     def points(self) -> NDArray[np.float64]:
         """Beam end points (N, 2), metres, in the scan frame; NaN rows where the beam is invalid."""
         a = self.angles()

@@ -13,7 +13,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ __all__ = [
     "laser_in_base",
     "odom_scans",
     "off_people",
+    "open_beams_in_base",
     "perceive",
     "remembers_legs",
 ]
@@ -112,6 +113,9 @@ class PerceptionFrame:
     origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
     # T_world_base: the odometry pose corrected by scan matching (None: robot_pose, no correction)
     track_pose: Pose2 | None = None
+    # far ends (K, 2) in the base frame of the beams that met nothing within range, and their scanners (K,)
+    open_ends: NDArray[np.float32] = field(default_factory=lambda: np.zeros((0, 2), np.float32))
+    open_owner: NDArray[np.int16] = field(default_factory=lambda: np.zeros(0, np.int16))
 
     @property
     def world_pose(self) -> Pose2:
@@ -188,6 +192,23 @@ def laser_in_base(
     points = np.concatenate(pts_all)
     laser_z = _heights(merged, points, float(np.mean(z_all)) if len(z_all) else 0.0)
     return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def open_beams_in_base(frame: Any) -> tuple[NDArray[np.float32], NDArray[np.int16]]:
+    """The far ends ``(K, 2)`` in the base frame of ``frame``'s beams that met nothing within their
+    scanner's ``range_max`` (:meth:`studio.io.LaserScan.open`), and which scanner each came from ``(K,)``."""
+    ends, owner = [np.zeros((0, 2), np.float32)], [np.zeros(0, np.int16)]
+    for k, sib in enumerate(frame.scans):
+        scan = sib.scan
+        is_open = scan.open()
+        if not is_open.any():
+            continue
+        a = scan.angles()[is_open]
+        p3 = np.zeros((len(a), 3))
+        p3[:, 0], p3[:, 1] = scan.range_max * np.cos(a), scan.range_max * np.sin(a)
+        ends.append(sib.sensor_pose.apply(p3)[:, :2].astype(np.float32))
+        owner.append(np.full(len(a), k, np.int16))
+    return np.concatenate(ends), np.concatenate(owner)
 
 
 def _heights(merged: LaserDetections, points: NDArray[np.float32], fallback: float) -> FloatArray:
@@ -379,6 +400,8 @@ def perceive(
             pf = PerceptionFrame(
                 frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
+            if static_map is not None:
+                pf.open_ends, pf.open_owner = open_beams_in_base(frame)
             if matcher is not None and laser is not None:
                 pf.track_pose = matcher.step(
                     off_people(points, laser), frame.robot_pose if has_odometry else None
@@ -389,10 +412,10 @@ def perceive(
                 for scan in odom_scans(pf):
                     static_map.add(*scan)
                 if pf.index % _BODY_EVERY == 0:  # the body is judged by a share of the scans: a sample does
-                    for k, scan in enumerate(base_scans(pf)):
+                    for k, body_scan in enumerate(base_scans(pf)):
                         if k == len(body_maps):
                             body_maps.append(StaticMapBuilder(max_free_range=0.0))
-                        body_maps[k].add(*scan)
+                        body_maps[k].add(*body_scan)
                 t_map += time.perf_counter() - t3
             pending.append((frame, pf, job))
             hand_on(wait_for=in_flight)
@@ -445,11 +468,17 @@ class NoLaserDetector:
         return LaserDetections.empty(with_segments=True)
 
 
-def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
+def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray, FloatArray]]:
     """The frame's scans in the world frame (:attr:`PerceptionFrame.world_pose`): ``(points (M, 2), scanner
-    position (2,))``, beams in order with NaN for no return (what
-    :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
+    position (2,), open ends (K, 2))``, beams in order with NaN for no return, then the far ends of the
+    beams that met nothing within range (what :class:`studio.detect.laser.static_map.StaticMap`
+    accumulates)."""
     pose = f.world_pose
     for k in range(len(f.origins)):
         sel = f.origin_of_point == k
-        yield pose.apply(f.points[sel, :2].astype(np.float64)), pose.apply(f.origins[k])
+        ends = f.open_ends[f.open_owner == k].astype(np.float64)
+        yield (
+            pose.apply(f.points[sel, :2].astype(np.float64)),
+            pose.apply(f.origins[k]),
+            pose.apply(ends) if len(ends) else np.zeros((0, 2)),
+        )

@@ -124,6 +124,8 @@ def test_zero_stamp_uses_fallback_and_scan_checks() -> None:
     assert scan.frame_id == "laser"
     assert scan.intensities is None
     assert scan.valid().tolist() == [True, False, False, False, False]
+    # +inf (REP 117) and beyond range_max met nothing; NaN and below range_min say nothing
+    assert scan.open().tolist() == [False, False, True, False, True]
     with pytest.raises(RecordingError, match="not a decodable laser scan"):
         decode_scan(NS(header=msg.header))
 

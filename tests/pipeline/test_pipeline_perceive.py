@@ -100,3 +100,22 @@ def test_an_image_detector_error_stops_pass_one(recording, monkeypatch):
     # frames are handed on in order up to the one whose detection failed, never past it
     assert handed_on == list(range(len(handed_on)))
     assert len(handed_on) <= 8
+
+
+def test_beams_that_met_nothing_reach_the_static_map(recording):
+    """The simulator's lasers read +inf where nothing lies within 10 m: pass one keeps those beams' far
+    ends (10 m from their scanner, in the base frame) and hands them to the static map in the world frame."""
+    from studio.pipeline.perceive import odom_scans
+
+    frames, info = perceive(
+        recording / "recording.mcap", load_rig(recording / "rig.yaml"), LabelOptions(sources="laser")
+    )
+    assert sum(len(f.open_ends) for f in frames) > 100
+    for f in frames[::5]:
+        assert len(f.open_owner) == len(f.open_ends)
+        reach = np.hypot(*(f.open_ends - f.origins[f.open_owner]).T)
+        np.testing.assert_allclose(reach, 10.0, atol=1e-3)
+        for k, (_points, origin, ends) in enumerate(odom_scans(f)):
+            assert len(ends) == np.sum(f.open_owner == k)
+            np.testing.assert_allclose(np.hypot(*(ends - origin).T), 10.0, atol=1e-3)
+    assert info["static_map"].free.sum() > 0

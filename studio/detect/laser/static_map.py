@@ -2,8 +2,8 @@
 
 All scans of a recording, in the odom frame (so the robot may move), go into an occupancy-count grid:
 per cell, in how many scans it was *hit* (a return fell in it or next to it) and in how many it was seen
-*free* (a beam's line crossed it on the way to a return farther away; the lines are drawn with OpenCV,
-~1 ms per 1 081-beam scan). A cell's occupied fraction is
+*free* (a beam's line crossed it on the way to a return farther away, or a beam that met nothing within
+the scanner's range crossed it; the lines are drawn with OpenCV, ~1 ms per 1 081-beam scan). A cell's occupied fraction is
 ``hit / (hit + free)`` over the scans that observed it. Walls and furniture score near 1; a walking person
 leaves only low fractions; a person who stands still for part of the recording is kept as long as the
 place was seen free in more than 30 % of the scans that observed it (default ``occupied=0.7``).
@@ -14,6 +14,11 @@ detections of a static robot drop ~8×; a moving robot (``negative_2.bag``, odom
 keeps more clutter, because thin objects are seen free by grazing beams and odometry error spreads them.
 ``occupied=0.5, min_share=0.5, dilate=2`` removes 3× more of it there, but also a quarter of the people
 who walk back and forth in front of a static robot — choose by recording.
+
+Beams that met nothing (``+inf`` or beyond ``range_max``, REP 117) count as free up to ``range_max``:
+without them someone who stood still in front of open space (a hall longer than the scanner's reach) was
+never seen free there and looked like structure. Drivers that write a small value for "no return" (older
+Hokuyo drivers, as in leg_tracker's bags) cannot be told from errors, and those beams mark nothing.
 
 A detection is static when most of its *segment's* points lie on occupied cells — deciding per segment is
 much more robust than per point. Built in the sensor (or base) frame instead of odom, the same map finds
@@ -65,7 +70,7 @@ class StaticMap:
     @classmethod
     def build(
         cls,
-        scans_in_odom: Iterable[tuple[ArrayLike, ArrayLike]],
+        scans_in_odom: Iterable[tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike]],
         *,
         cell: float = 0.05,
         max_free_range: float = 10.0,
@@ -77,8 +82,10 @@ class StaticMap:
 
         Args:
             scans_in_odom: per scan ``(points (M, 2), sensor_origin (2,))`` in the map frame, metres, in any
-                order; invalid beams NaN (they mark nothing: a missing return says nothing about free
-                space).
+                order; invalid beams NaN (they mark nothing: an error says nothing about free space).
+                Optionally a third element ``open_ends (K, 2)``: where the beams that met nothing within
+                the scanner's ``range_max`` end (:meth:`studio.io.LaserScan.open`); the cells along them
+                are free up to ``max_free_range``.
             cell: cell size, metres.
             max_free_range: beams mark cells free up to this distance from the sensor, metres.
             free_margin: the last ``free_margin`` metres before a return (and the cell before them) are not
@@ -92,8 +99,8 @@ class StaticMap:
         builder = StaticMapBuilder(
             cell=cell, max_free_range=max_free_range, free_margin=free_margin, dilate=dilate, pad=pad
         )
-        for points, origin in scans_in_odom:
-            builder.add(points, origin)
+        for scan in scans_in_odom:
+            builder.add(*scan)
         return builder.finish()
 
     # -- queries --------------------------------------------------------------------------------------
@@ -231,12 +238,13 @@ class StaticMapBuilder:
         self.n_scans = 0
         self._done = False
 
-    def add(self, points: ArrayLike, origin: ArrayLike) -> None:
-        """One scan: ``points (M, 2)`` in the map frame (NaN = no return, marks nothing), ``origin (2,)``.
+    def add(self, points: ArrayLike, origin: ArrayLike, open_ends: ArrayLike | None = None) -> None:
+        """One scan: ``points (M, 2)`` in the map frame (NaN = an error, marks nothing), ``origin (2,)`` and
+        optionally ``open_ends (K, 2)``, the far ends of the beams that met nothing within range.
 
         The scan's hits (dilated by ``dilate`` cells) count once each in ``hits``; every cell a beam's line
-        crosses from the sensor to ``free_margin`` + one cell before its return (at most
-        ``max_free_range`` out) and that the scan did not hit counts once in ``free``. The lines are drawn
+        crosses from the sensor to ``free_margin`` + one cell before its return, or to its open end (at most
+        ``max_free_range`` out), and that the scan did not hit counts once in ``free``. The lines are drawn
         with OpenCV on the window of the grid the scan covers.
         """
         if self._done:
@@ -246,13 +254,23 @@ class StaticMapBuilder:
         o = np.asarray(origin, dtype=np.float64).reshape(2)
         self.n_scans += 1
         pts = pts[np.all(np.isfinite(pts), axis=1)]
-        if not len(pts):
+        ends = np.zeros((0, 2)) if open_ends is None else np.asarray(open_ends, dtype=np.float64)
+        ends = ends.reshape(-1, 2)
+        ends = ends[np.all(np.isfinite(ends), axis=1)]
+        if self.max_free_range <= 0.0:
+            ends = ends[:0]
+        elif len(ends):  # an open beam is free as far as the map marks anything free
+            de = ends - o
+            re = np.maximum(np.hypot(de[:, 0], de[:, 1]), 1e-9)
+            ends = o + de * (np.minimum(re, self.max_free_range) / re)[:, None]
+        if not len(pts) and not len(ends):
             return
         hit = grid.cells(pts)
         o_cell = grid.cells(o[None])[0]
         # the returns, their dilation and every beam line lie in this box of cells
-        lo = np.minimum(hit.min(0), o_cell) - dilate
-        hi = np.maximum(hit.max(0), o_cell) + dilate
+        box = np.concatenate([hit, grid.cells(ends), o_cell[None]])
+        lo = box.min(0) - dilate
+        hi = box.max(0) + dilate
         grid.ensure(np.stack([lo, hi]))
         shape = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
         hits = np.zeros(shape, np.uint8)
@@ -260,9 +278,10 @@ class StaticMapBuilder:
         hit_mask = hits
         if dilate:
             hit_mask = np.asarray(cv2.dilate(hits, np.ones((2 * dilate + 1,) * 2, np.uint8)), np.uint8)
-        d = pts - o
-        r = np.hypot(d[:, 0], d[:, 1])
+        d = np.concatenate([pts - o, ends - o])
+        r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
         reach = np.minimum(r - self.free_margin - cell, self.max_free_range)
+        reach[len(pts) :] = r[len(pts) :]  # open beams: no return to keep a margin from
         beams = reach > 0.0
         free_mask = np.zeros(shape, np.uint8)
         if beams.any():

@@ -152,3 +152,35 @@ def test_scan_order_and_dropouts():
     assert np.array_equal(a.origin, b.origin)
     # 30 % of 0.25° beams missing still leave the fan free at 2 m (neighbours 1 cm apart)
     assert a.observations(np.array([[2.0, 0.0], [2.0, 0.5], [2.0, -0.5]])).tolist() == [1, 1, 1]
+
+
+def _open_field(n: int = 40, stand: int = 12) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """A static laser in open space: a wall to its left only; someone stands 4 m ahead for ``stand``
+    scans, then leaves. Beams that meet nothing within range are the open ends (REP 117: +inf)."""
+    out = []
+    for k in range(n):
+        circles = [(4.0, 0.0, 0.15)] if k < stand else []
+        pts, valid = cast(circles=circles, walls=[(-2.0, 3.0, 9.0, 3.0)], step_deg=0.5, max_range=8.0)
+        half = np.radians(135.0)
+        ang = np.arange(-half, half + 1e-9, np.radians(0.5))
+        ends = 8.0 * np.stack([np.cos(ang), np.sin(ang)], axis=1)[~valid]
+        out.append((pts, np.zeros(2), ends))
+    return out
+
+
+def test_beams_that_met_nothing_mark_free_space():
+    """Without the open ends the spot where someone stood before open space was never seen free: it looks
+    like structure. With them it was seen free in every scan after they left."""
+    scans = _open_field()
+    spot = np.array([[4.0 - 0.15, 0.0]])
+    closed = StaticMap.build([(p, o) for p, o, _ in scans])
+    opened = StaticMap.build(scans)
+    assert closed.static_fraction(spot)[0] > 0.9
+    assert opened.static_fraction(spot)[0] < 0.4
+    # the wall stays structure, space beyond max_free_range stays unobserved
+    wall = np.array([[3.0, 3.0]])
+    assert opened.static_fraction(wall)[0] > 0.9
+    short = StaticMap.build(scans, max_free_range=3.0)
+    assert short.observations(spot)[0] == 12
+    # a body map (no free space at all) ignores them
+    assert StaticMap.build(scans, max_free_range=0.0).free.sum() == 0
