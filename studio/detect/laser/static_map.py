@@ -3,10 +3,11 @@
 All scans of a recording, in the odom frame (so the robot may move), go into an occupancy-count grid:
 per cell, in how many scans it was *hit* (a return fell in it or next to it) and in how many it was seen
 *free* (a beam's line crossed it on the way to a return farther away, or a beam that met nothing within
-the scanner's range crossed it; the lines are drawn with OpenCV, ~1 ms per 1 081-beam scan). A cell's occupied fraction is
-``hit / (hit + free)`` over the scans that observed it. Walls and furniture score near 1; a walking person
-leaves only low fractions; a person who stands still for part of the recording is kept as long as the
-place was seen free in more than 30 % of the scans that observed it (default ``occupied=0.7``).
+the scanner's range crossed it; the lines are drawn with OpenCV, ~1 ms per 1 081-beam scan). A cell's
+occupied fraction is ``hit / (hit + free)`` over the scans that observed it. Walls and furniture score
+near 1; a walking person leaves only low fractions; a person who stands still for part of the recording is
+kept as long as the place was seen free in more than 30 % of the scans that observed it (default
+``occupied=0.7``).
 
 Measured on leg_tracker's bags (bench/bench_laser_detector.py): with the defaults (``occupied=0.7``,
 ``min_share=0.7``, ``dilate=1``) person recall on the labelled scans drops by < 1 point while clutter
