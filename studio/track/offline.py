@@ -10,7 +10,9 @@
    appearance, solved globally); a continuation takes the id of the tracklet it continues, and one that
    started before the tracklet it continues ended (its tail had left the person) replaces that tail.
    Where two stitched tracks come close, the detections they held there are distributed between them
-   again by their motion through and after the encounter (:mod:`studio.track.encounters`).
+   again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
+   colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
+   had too few described observations on one side for it to judge, its stitched track has enough.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
 4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped
@@ -48,7 +50,8 @@ class OfflineConfig:
             short: stitching bridges longer gaps with more information than the online tracker has.
         stitch: stitching options, or None to skip stitching.
         swaps: options of the identity-swap repair between tracklets that came close
-            (:mod:`studio.track.swaps`), or None to skip it.
+            (:mod:`studio.track.swaps`), run on the tracklets and again on the stitched tracks, or None to
+            skip it.
         encounters: options of the re-decision of encounters between stitched tracks by their motion
             (:mod:`studio.track.encounters`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
@@ -246,6 +249,8 @@ def track_offline(
         merged, _ = reassign_encounters(
             obs, merged, estimate, accel_sigma=cfg.tracker.accel_sigma, config=cfg.encounters
         )
+    if cfg.swaps is not None and len(merged) > 1:
+        merged, _ = repair_swaps(obs, merged, cfg.swaps)
     kept = []
     for tid, h in merged.items():
         h.sort()
