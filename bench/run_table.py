@@ -8,7 +8,8 @@
 Each run is a child process, so its peak resident memory (``peak MB``) is its own.
 Methods: ``studio`` (ours), ``thesis`` (the thesis method, same inputs), ``laser`` (ours, laser only),
 ``camera`` (ours, camera only). Metrics at 0.2 m (the thesis radius). Recordings are simulated once into
-``bench/out/sim`` and reused; runs go to ``bench/out/runs``. Prints a markdown table.
+``bench/out/sim`` and reused (their folder names carry the simulator version, so a simulator change makes
+them again); runs go to ``bench/out/runs``. Prints a markdown table.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from studio.evaluate import box_ap, evaluate
 from studio.labels import read_labels
 from studio.pipeline import LabelOptions
 from studio.sim import simulate
+from studio.sim.simulate import SIM_VERSION
 
 OUT = Path(__file__).resolve().parent / "out"
 METHODS = {
@@ -41,7 +43,7 @@ METHODS = {
 
 
 def recording(scenario: str, seconds: float | None, seed: int) -> Path:
-    name = f"{scenario}-{'full' if seconds is None else f'{seconds:g}s'}-seed{seed}"
+    name = f"{scenario}-{'full' if seconds is None else f'{seconds:g}s'}-seed{seed}-sim{SIM_VERSION}"
     out = OUT / "sim" / name
     if not (out / "recording.mcap").exists():
         t = time.perf_counter()
