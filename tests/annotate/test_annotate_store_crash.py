@@ -86,7 +86,12 @@ def test_sigkill_at_random_moments(tmp_path: Path, make_run: Callable[..., Path]
         first_ack = proc.stdout.readline()  # at least one op acknowledged, however loaded the machine
         time.sleep(rng.uniform(0.0, 0.5))
         proc.send_signal(signal.SIGKILL)
-        out, _ = proc.communicate()
+        # read the rest through the same buffered reader as the lines above: communicate() would read the
+        # pipes' file descriptors and lose what readline() had already buffered (acknowledged ops)
+        out = proc.stdout.read()
+        proc.wait()
+        assert proc.stderr is not None
+        proc.stderr.close()
         assert proc.returncode == -signal.SIGKILL
         acked = [json.loads(first_ack)]
         for line in out.splitlines():
