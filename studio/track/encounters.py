@@ -48,13 +48,17 @@ class EncounterConfig:
         tail_frames: frames after the encounter whose observations also score a hypothesis.
         beam: hypotheses kept per frame.
         margin: the new assignment must lower the negative log-likelihood by more than this.
+
+    ``pad_frames`` 10 and ``margin`` 5 (session 16; before 5 and 10): on 16 simulated ``moving`` recordings
+    (seeds 1–8 of simulator versions 2 and 3) identity switches 128 → 112, F1 and MOTA up 0.001–0.002, IDF1
+    +0.003 / −0.004; laser-only replays 210 → 208 switches.
     """
 
     close_m: float = 0.8
-    pad_frames: int = 5
+    pad_frames: int = 10
     tail_frames: int = 10
     beam: int = 16
-    margin: float = 10.0
+    margin: float = 5.0
 
     def __post_init__(self) -> None:
         if self.close_m <= 0 or self.beam < 1 or min(self.pad_frames, self.tail_frames, self.margin) < 0:
