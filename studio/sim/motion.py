@@ -4,8 +4,10 @@ The robot runs its scenario program (turn on the spot, drive, wait) under speed 
 and stops for a person in its way. People walk from goal to goal (through doors when the goal is in
 another room) with a smooth speed profile, turn, stop for a while, keep clear of furniture, slow down or
 step aside for each other and wait for the robot. Bodies do not overlap: a step that brings two people's
-centres closer than 0.4 m is blocked (stepping apart is free), except for someone stuck that way for 2 s,
-who squeezes past (two people meeting in a narrow door). Odometry integrates the true wheel velocities with a
+centres closer than 0.4 m is blocked (stepping apart is free). Someone whose way a person blocks walks
+around them instead, along their side; someone stuck for 2 s in a door passage squeezes past (two people
+meeting in a narrow door), and someone who cannot get past for 4 s in a room gives up that goal and
+chooses another. Odometry integrates the true wheel velocities with a
 per-run scale error, a small curvature bias and noise proportional to the speed, so it drifts only while
 the robot moves.
 """
@@ -31,7 +33,10 @@ DT = 0.02
 
 _ROBOT_R = 0.46  # half-diagonal of the 0.7 × 0.6 m body
 _BODY_GAP = 0.4  # m: two people's centres come no closer (shoulders ~0.45 m wide, bodies ~0.25 m deep)
-_SQUEEZE_S = 2.0  # s: someone blocked by another person this long squeezes past (narrow doors)
+_SQUEEZE_S = 2.0  # s: someone blocked by another person this long in a door passage squeezes past
+_GIVE_UP_S = 4.0  # s: someone who gets no closer to their next waypoint this long in a room gives up the goal
+_SLIDE_ANGLE = np.deg2rad(100.0)  # a step around someone in the way: this far from the direction to them
+_ROOMS = ("A", "B", "C")
 _WALK = {  # walkable rectangles: rooms with 0.25 m margin to walls, plus door passages
     "A": (-5.75, 5.75, -3.75, 3.75),
     "B": (6.25, 11.75, -3.75, 3.75),
@@ -93,6 +98,11 @@ class Motion:
 
 def _walkable(x: float, y: float) -> bool:
     return any(x0 <= x <= x1 and y0 <= y <= y1 for x0, x1, y0, y1 in _WALK.values())
+
+
+def _in_room(x: float, y: float) -> bool:
+    """Inside a room's walkable rectangle (not in a door passage between rooms)."""
+    return any(_WALK[r][0] <= x <= _WALK[r][1] and _WALK[r][2] <= y <= _WALK[r][3] for r in _ROOMS)
 
 
 def _seg_clear(p: FloatArray, q: FloatArray, obstacles: FloatArray, margin: float) -> bool:
@@ -201,6 +211,8 @@ class _Person:
     waiting: float = 0.0
     ignore_robot_until: float = -1.0
     blocked_s: float = 0.0
+    best_gap: float = np.inf
+    stuck_s: float = 0.0
 
 
 def _robot_route(sc: Scenario) -> FloatArray:
@@ -332,6 +344,7 @@ def _step_person(
         final = len(pp.waypoints) == 1
         if not final and dist < 0.3:
             pp.waypoints.pop(0)
+            pp.best_gap, pp.stuck_s = np.inf, 0.0
             target = pp.waypoints[0]
             d = target - pp.pos
             dist = float(np.hypot(*d))
@@ -374,6 +387,7 @@ def _step_person(
                     aside = pp.pos + 1.2 * side
                     if _walkable(*aside):
                         pp.waypoints.insert(0, aside)
+                        pp.best_gap, pp.stuck_s = np.inf, 0.0
                     pp.ignore_robot_until = t + 2.5
                     pp.waiting = 0.0
             else:
@@ -381,34 +395,75 @@ def _step_person(
     err = float(wrap_angle(h_des - pp.heading))
     pp.heading = float(wrap_angle(pp.heading + np.clip(err, -turn_rate * DT, turn_rate * DT)))
     pp.v += float(np.clip(v_des - pp.v, -0.9 * DT, 0.7 * DT))
+    ob = planner.world.obstacles
+    d_old_q = [float(np.hypot(*(pp.pos - q.pos))) for j, q in enumerate(people) if j != i]
+    in_door = not _in_room(*pp.pos)
+    squeezing = in_door and pp.blocked_s >= _SQUEEZE_S
+
+    def check(new: FloatArray) -> tuple[bool, bool]:
+        """Whether a step to ``new`` is free, and whether a person blocks it."""
+        d_new = float(np.hypot(*(new - robot[:2])))
+        # the robot's body blocks steps towards it; someone it drove up to can still step away
+        by_robot = d_new < _ROBOT_R + 0.28 and d_new < float(np.hypot(*(pp.pos - robot[:2])))
+        # nor can two bodies overlap: a step towards someone closer than _BODY_GAP is blocked (steps
+        # apart are free), unless the person squeezes past in a narrow door
+        d_new_q = [float(np.hypot(*(new - q.pos))) for j, q in enumerate(people) if j != i]
+        closing = any(a < _BODY_GAP and a < b for a, b in zip(d_new_q, d_old_q, strict=True))
+        by_person = closing and not squeezing
+        blocked = (
+            not _walkable(*new)
+            or by_robot
+            or by_person
+            or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
+        )
+        return not blocked, by_person
+
     step = pp.v * DT * np.array([np.cos(pp.heading), np.sin(pp.heading)])
     new = pp.pos + step
-    ob = planner.world.obstacles
-    d_new = float(np.hypot(*(new - robot[:2])))
-    # the robot's body blocks steps towards it; someone it drove up to can still step away
-    by_robot = d_new < _ROBOT_R + 0.28 and d_new < float(np.hypot(*(pp.pos - robot[:2])))
-    # nor can two bodies overlap: a step towards someone closer than _BODY_GAP is blocked (steps apart
-    # are free), unless the person has been stuck for _SQUEEZE_S (two people meeting in a narrow door)
-    d_new_q = [float(np.hypot(*(new - q.pos))) for j, q in enumerate(people) if j != i]
-    d_old_q = [float(np.hypot(*(pp.pos - q.pos))) for j, q in enumerate(people) if j != i]
-    closing = any(a < _BODY_GAP and a < b for a, b in zip(d_new_q, d_old_q, strict=True))
-    squeezing = pp.blocked_s >= _SQUEEZE_S
-    by_person = closing and not squeezing
-    blocked = (
-        not _walkable(*new)
-        or by_robot
-        or by_person
-        or bool(np.any(np.hypot(*(ob[:, :2] - new).T) < ob[:, 2] - 0.05))
-    )
+    free, by_person = check(new)
+    in_the_way = by_person
+    if by_person and d_old_q:
+        # someone in the way: walk around them, along their side (square to the line between the two,
+        # turned a little away), on the side nearer the way one was going
+        q = [q for j, q in enumerate(people) if j != i][int(np.argmin(d_old_q))]
+        toward = (q.pos - pp.pos) / max(float(np.hypot(*(q.pos - pp.pos))), 1e-6)
+        length = float(np.hypot(*step))
+        ways = [_turn(toward, sign * _SLIDE_ANGLE) for sign in (1.0, -1.0)]
+        for way in sorted(ways, key=lambda w: -float(w @ step)):
+            slide = np.asarray(pp.pos + length * way, dtype=np.float64)
+            ok, _ = check(slide)
+            if ok:
+                new, free, by_person = slide, True, False
+                break
     if squeezing:  # squeezes past until clear of everyone
+        d_new_q = [float(np.hypot(*(new - q.pos))) for j, q in enumerate(people) if j != i]
         pp.blocked_s = pp.blocked_s if min(d_new_q, default=np.inf) < _BODY_GAP else 0.0
     else:
-        pp.blocked_s = pp.blocked_s + DT if by_person else 0.0
-    if blocked:
+        pp.blocked_s = pp.blocked_s + DT if in_the_way else 0.0
+    if not free:
         pp.v *= 0.5
     else:
+        pp.phase += 2.0 * np.pi * float(np.hypot(*(new - pp.pos))) / float(stride_length(pp.v))
         pp.pos = new
-        pp.phase += 2.0 * np.pi * float(np.hypot(*step)) / float(stride_length(pp.v))
+    if pp.waypoints is not None:
+        # no closer to the next waypoint for a while (people in the way, no gap to pass): in a room, give
+        # up this goal and choose another
+        gap = float(np.hypot(*(pp.waypoints[0] - pp.pos)))
+        if gap < pp.best_gap - 0.05:
+            pp.best_gap, pp.stuck_s = gap, 0.0
+        else:
+            pp.stuck_s += DT
+        if pp.stuck_s >= _GIVE_UP_S and not in_door:
+            pp.waypoints = None
+            pp.dwell_left = float(planner.rng.uniform(1.0, 3.0))
+    if pp.waypoints is None:
+        pp.best_gap, pp.stuck_s = np.inf, 0.0
+
+
+def _turn(u: FloatArray, angle: float) -> FloatArray:
+    """The unit vector ``u`` turned by ``angle`` radians."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])
 
 
 def _integrate_odometry(v: FloatArray, w: FloatArray, rng: np.random.Generator) -> FloatArray:
