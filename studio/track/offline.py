@@ -14,7 +14,11 @@
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
    had too few described observations on one side for it to judge, its stitched track has enough.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
-   (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions.
+   (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions. An
+   observation that another track, unobserved in that frame, passes close by was probably one detection of
+   both people (two people passing merge in the scan and in the image): it counts with its covariance
+   widened by ``shared_sigma``, so the track's motion carries it past instead of the midpoint pulling it
+   towards the other person.
 4. Tracks shorter than ``min_track_duration_s`` or with fewer than ``min_track_hits`` observations are dropped
    (likely false positives); the rest are numbered 0, 1, 2, … in order of appearance.
 """
@@ -65,6 +69,10 @@ class OfflineConfig:
         appearance_frames: how many observations at a tracklet's start / end make its appearance.
         renumber: number the final tracks 0, 1, 2, … in order of their first frame (else they keep the ids
             of the online pass, with gaps).
+        shared_radius: an observation of one final track within this distance of another track's smoothed
+            position, in a frame where that track has no observation, is taken for one detection of both
+            people, metres (0: never).
+        shared_sigma: such an observation's covariance is widened by this standard deviation, metres.
     """
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
@@ -79,6 +87,12 @@ class OfflineConfig:
     min_track_hits: int = 5
     appearance_frames: int = 10
     renumber: bool = True
+    shared_radius: float = 0.6
+    shared_sigma: float = 0.3
+
+    def __post_init__(self) -> None:
+        if self.shared_radius < 0 or self.shared_sigma < 0:
+            raise ValueError("shared_radius and shared_sigma must be non-negative")
 
 
 # A track's hits: (frame index, row in that frame's Observations), in frame order.
@@ -116,7 +130,12 @@ def _online_pass(obs: Sequence[Observations], cfg: OfflineConfig) -> dict[int, _
     return out
 
 
-def _run(obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig) -> FilterRun:
+def _run(
+    obs: Sequence[Observations],
+    hits: _Hits,
+    cfg: OfflineConfig,
+    shared: frozenset[tuple[int, int]] = frozenset(),
+) -> FilterRun:
     first, last = hits[0][0], hits[-1][0]
     K = last - first + 1
     stamps = np.array([obs[i].stamp_ns for i in range(first, last + 1)], dtype=np.int64)
@@ -125,6 +144,8 @@ def _run(obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig) -> Filter
     for i, r in hits:
         z[i - first] = obs[i].xy[r]
         R[i - first] = obs[i].cov[r]
+        if (i, r) in shared:
+            R[i - first] = R[i - first] + cfg.shared_sigma**2 * np.eye(2)
     t = cfg.tracker
     return filter_track(stamps, z, R, accel_sigma=t.accel_sigma, init_speed_sigma=t.init_speed_sigma)
 
@@ -176,9 +197,18 @@ def _tracklet(
 
 
 def _points(
-    tid: int, obs: Sequence[Observations], hits: _Hits, cfg: OfflineConfig, cache: _Cache
+    tid: int,
+    obs: Sequence[Observations],
+    hits: _Hits,
+    cfg: OfflineConfig,
+    cache: _Cache,
+    shared: frozenset[tuple[int, int]] = frozenset(),
 ) -> list[tuple[int, TrackPoint]]:
-    run, xs, Ps = _estimate(obs, hits, cfg, cache)
+    if shared:
+        run = _run(obs, hits, cfg, shared)
+        xs, Ps = rts_smooth(run)
+    else:
+        run, xs, Ps = _estimate(obs, hits, cfg, cache)
     x, P = (xs, Ps) if cfg.smooth else (run.x, run.P)
     first = hits[0][0]
     det_of = {i: int(obs[i].det_index[r]) for i, r in hits}
@@ -204,6 +234,32 @@ def _points(
         )
         for i, det in out
     ]
+
+
+def _shared_hits(
+    obs: Sequence[Observations], tracks: list[_Hits], cfg: OfflineConfig, cache: _Cache
+) -> list[frozenset[tuple[int, int]]]:
+    """Per track, its hits that were probably one detection of two people: in a frame where another
+    track has no observation but its smoothed position lies within ``shared_radius`` of the hit."""
+    if cfg.shared_radius <= 0 or len(tracks) < 2:
+        return [frozenset() for _ in tracks]
+    pos = []
+    for h in tracks:
+        _, x, _ = _estimate(obs, h, cfg, cache)
+        pos.append((h[0][0], x[:, :2], {i for i, _ in h}))
+    out = []
+    for a, h in enumerate(tracks):
+        marked = set()
+        for i, r in h:
+            z = obs[i].xy[r]
+            for b, (first, xb, held) in enumerate(pos):
+                if b == a or i in held or not first <= i < first + len(xb):
+                    continue
+                if float(np.hypot(*(xb[i - first] - z))) < cfg.shared_radius:
+                    marked.add((i, r))
+                    break
+        out.append(frozenset(marked))
+    return out
 
 
 def track_offline(
@@ -258,8 +314,9 @@ def track_offline(
         if len(h) >= cfg.min_track_hits and duration_s >= cfg.min_track_duration_s:
             kept.append((h[0][0], tid, h))
     kept.sort()
+    shared = _shared_hits(obs, [h for _, _, h in kept], cfg, cache)
     per_frame: list[list[TrackPoint]] = [[] for _ in obs]
     for n, (_, tid, h) in enumerate(kept):
-        for i, p in _points(n if cfg.renumber else tid, obs, h, cfg, cache):
+        for i, p in _points(n if cfg.renumber else tid, obs, h, cfg, cache, shared[n]):
             per_frame[i].append(p)
     return TrackResult(tuple(TrackFrame(o.stamp_ns, tuple(p)) for o, p in zip(obs, per_frame, strict=True)))

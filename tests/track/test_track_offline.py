@@ -143,3 +143,50 @@ def test_empty_and_tentative_hits_are_kept():
 def test_stitch_config_is_checked():
     with pytest.raises(ValueError, match="positive"):
         StitchConfig(max_gap_s=0.0)
+
+
+def _passing(merged=range(28, 33)):
+    """P walks +x along y = 0.25, Q walks -x along y = -0.25 (1 m/s, 10 Hz); in the frames ``merged`` they
+    are within 0.65 m of each other and the detector sees one person between them."""
+    t0 = 1_700_000_000_000_000_000
+    out, truth = [], []
+    for i in range(60):
+        p, q = np.array([0.1 * i, 0.25]), np.array([6.0 - 0.1 * i, -0.25])
+        xy = np.array([(p + q) / 2]) if i in merged else np.array([p, q])
+        n = len(xy)
+        out.append(
+            Observations(
+                t0 + i * 100_000_000,
+                xy,
+                np.tile(np.eye(2) * 0.01, (n, 1, 1)),
+                ("laser",) * n,
+                np.ones(n),
+                None,
+                np.arange(n),
+            )
+        )
+        truth.append((p, q))
+    return out, truth
+
+
+def _worst_error(result: TrackResult, truth, frames) -> float:
+    return max(
+        min(float(np.hypot(*(pt.xy - t))) for t in truth[i]) for i in frames for pt in result.frames[i].points
+    )
+
+
+def test_one_detection_of_two_passing_people_does_not_pull_the_track_between_them():
+    obs, truth = _passing()
+    near = range(26, 35)
+    ours = track_offline(obs)
+    plain = track_offline(obs, config=OfflineConfig(shared_radius=0.0))
+    assert len(ours.track_ids()) == len(plain.track_ids()) == 2
+    assert _worst_error(plain, truth, near) > 0.15  # the merged detection pulls one track 0.2 m off
+    assert _worst_error(ours, truth, near) < 0.1  # its motion carries it through instead
+
+
+def test_shared_detection_settings_are_checked():
+    with pytest.raises(ValueError, match="non-negative"):
+        OfflineConfig(shared_radius=-0.1)
+    with pytest.raises(ValueError, match="non-negative"):
+        OfflineConfig(shared_sigma=-0.1)
