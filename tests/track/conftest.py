@@ -168,6 +168,15 @@ def rmse(result: TrackResult, owner: list[dict[int, int]], scene: Scene) -> floa
     return float(np.sqrt(np.mean(err)))
 
 
+def points(stamp_ns: int, xy: FloatArray, source: str, appearance: FloatArray | None = None) -> Observations:
+    """One frame of point observations at ``xy`` ``(N, 2)``, 0.1 m standard deviation, score 1."""
+    n = len(xy)
+    app = None if appearance is None else np.asarray(appearance, np.float32)[:n]
+    return Observations(
+        stamp_ns, xy, np.tile(np.eye(2) * 0.01, (n, 1, 1)), (source,) * n, np.ones(n), app, np.arange(n)
+    )
+
+
 @pytest.fixture(scope="session")
 def sim() -> SimpleNamespace:
     """The helpers of this module."""
@@ -180,5 +189,6 @@ def sim() -> SimpleNamespace:
         detect=detect,
         id_switches=id_switches,
         rmse=rmse,
+        points=points,
         APP_DIM=APP_DIM,
     )

@@ -145,7 +145,7 @@ def test_stitch_config_is_checked():
         StitchConfig(max_gap_s=0.0)
 
 
-def _passing(merged=range(28, 33)):
+def _passing(sim, merged=range(28, 33)):
     """P walks +x along y = 0.25, Q walks -x along y = -0.25 (1 m/s, 10 Hz); in the frames ``merged`` they
     are within 0.65 m of each other and the detector sees one person between them."""
     t0 = 1_700_000_000_000_000_000
@@ -153,18 +153,7 @@ def _passing(merged=range(28, 33)):
     for i in range(60):
         p, q = np.array([0.1 * i, 0.25]), np.array([6.0 - 0.1 * i, -0.25])
         xy = np.array([(p + q) / 2]) if i in merged else np.array([p, q])
-        n = len(xy)
-        out.append(
-            Observations(
-                t0 + i * 100_000_000,
-                xy,
-                np.tile(np.eye(2) * 0.01, (n, 1, 1)),
-                ("laser",) * n,
-                np.ones(n),
-                None,
-                np.arange(n),
-            )
-        )
+        out.append(sim.points(t0 + i * 100_000_000, xy, "laser"))
         truth.append((p, q))
     return out, truth
 
@@ -175,8 +164,8 @@ def _worst_error(result: TrackResult, truth, frames) -> float:
     )
 
 
-def test_one_detection_of_two_passing_people_does_not_pull_the_track_between_them():
-    obs, truth = _passing()
+def test_one_detection_of_two_passing_people_does_not_pull_the_track_between_them(sim):
+    obs, truth = _passing(sim)
     near = range(26, 35)
     ours = track_offline(obs)
     plain = track_offline(obs, config=OfflineConfig(shared_radius=0.0))

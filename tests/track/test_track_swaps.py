@@ -103,7 +103,7 @@ def test_track_offline_runs_the_repair_and_can_skip_it():
     assert max(strays(on)) <= 1
 
 
-def _bounce(gap=(34, 41)):
+def _bounce(sim, gap=(34, 41)):
     """P (red) and Q (blue) walk along x at 1 m/s, 2 m apart, and close in to 0.5 m around frame 50 as if
     they bounced off each other; in truth they crossed: the colours change lanes after frame 50. Neither
     is observed in the frames of ``gap``."""
@@ -114,26 +114,15 @@ def _bounce(gap=(34, 41)):
         half = 1.0 - 0.75 * np.exp(-((t - 5.0) ** 2) / 2.0)
         xy = np.array([[t, half], [t, -half]]) if not gap[0] <= i < gap[1] else np.zeros((0, 2))
         colours = np.stack([RED, BLUE] if i <= 50 else [BLUE, RED]) + rng.normal(0, 1.5, (2, 6))
-        n = len(xy)
-        out.append(
-            Observations(
-                T0 + i * 100_000_000,
-                xy,
-                np.tile(np.eye(2) * 0.01, (n, 1, 1)),
-                ("fused",) * n,
-                np.ones(n),
-                colours[:n].astype(np.float32),
-                np.arange(n),
-            )
-        )
+        out.append(sim.points(T0 + i * 100_000_000, xy, "fused", colours))
     return out
 
 
-def test_the_repair_also_judges_the_stitched_tracks():
+def test_the_repair_also_judges_the_stitched_tracks(sim):
     """A gap just before the encounter cuts both tracklets there, leaving them too few described
     observations before it for the repair to judge; the stitched tracks have enough, and each ends with
     the colours it started with."""
-    obs = _bounce()
+    obs = _bounce(sim)
     res = track_offline(obs)
     assert len(res.track_ids()) == 2
     for tid in res.track_ids():
