@@ -11,9 +11,18 @@ again: a beam search over the frames (in each, the two observations kept or exch
 given to either track) runs both tracks' constant-velocity Kalman filters from their states before the
 encounter and scores each hypothesis by the negative log-likelihood of its observations, then of each
 track's own observations for ``tail_frames`` after the encounter. The best hypothesis replaces the online
-assignment when it scores ``margin`` better. Every observation stays with one of the two tracks, so the
-scores compare like with like; which track leaves the encounter as whom is left to the colours
-(:mod:`studio.track.swaps`) and to stitching.
+assignment when it scores ``margin`` better. Every observation stays with one of the two tracks; which
+track leaves the encounter as whom is left to the colours (:mod:`studio.track.swaps`) and to stitching.
+
+A laser leg pair that only one of the two tracks holds may also be split, one leg to each track: two
+people passing shoulder to shoulder put a leg of each side by side, the laser detector pairs them, and the
+pair's centre lies between both people. A split scores two observations (each leg with its own covariance,
+``Observations.alt_of``) where the pair scored one. A leg's term is negative, i.e. better than no
+observation, when it lies within about two standard deviations of its track's prediction (with the
+0.11 m leg σ and a track's own uncertainty, about 0.02 m² per axis, the normalisation term is about −2), so
+a split wins where both legs fit their tracks and the pair's centre fits neither. The online tracker splits
+pairs only between people walking together (``UkfTrackerConfig.split_pair_max_relative_speed``); here,
+with both trajectories known, people passing each other are split too.
 """
 
 from __future__ import annotations
@@ -153,6 +162,23 @@ def _hit(i: int, rows: dict[int, int]) -> tuple[int, int] | None:
     return (i, rows[i]) if i in rows else None
 
 
+def _options(
+    o: Observations, i: int, ka: tuple[int, int] | None, kb: tuple[int, int] | None
+) -> list[_Option]:
+    """The ways to give frame ``i``'s observations held by the two tracks (``ka``, ``kb``) to them: both
+    kept or exchanged; one given to either, or, when it is a laser leg pair, its two legs one to each."""
+    if ka and kb:
+        return [(ka, kb), (kb, ka)]
+    k = ka or kb
+    out: list[_Option] = [(k, None), (None, k)]
+    if k is not None and o.alt_of is not None:
+        legs = np.flatnonzero(o.alt_of == k[1])
+        if len(legs) == 2:
+            la, lb = (i, int(legs[0])), (i, int(legs[1]))
+            out += [(la, lb), (lb, la)]
+    return out
+
+
 def reassign_encounters(
     obs: Sequence[Observations],
     tracks: dict[int, Hits],
@@ -184,10 +210,7 @@ def reassign_encounters(
             i: [(_hit(i, tail[0]), _hit(i, tail[1]))] for i in range(f1 + 1, last + 1)
         }
         current = fixed | {i: [(ka, kb)] for i, (ka, kb) in mine.items()}
-        every = fixed | {
-            i: [(ka, kb), (kb, ka)] if ka and kb else [(ka or kb, None), (None, ka or kb)]
-            for i, (ka, kb) in mine.items()
-        }
+        every = fixed | {i: _options(obs[i], i, ka, kb) for i, (ka, kb) in mine.items()}
         (xa, Pa, _), (xb, Pb, _) = estimate(ha), estimate(hb)
         x0 = np.stack([xa[f0 - 1 - ha[0][0]], xb[f0 - 1 - hb[0][0]]])
         P0 = np.stack([Pa[f0 - 1 - ha[0][0]], Pb[f0 - 1 - hb[0][0]]])

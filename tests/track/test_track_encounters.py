@@ -146,3 +146,48 @@ def test_an_encounter_past_a_track_shortened_by_an_earlier_one_is_skipped(monkey
     fixed, changed = _run(obs, tracks)
     assert changed == 0
     assert fixed == tracks
+
+
+LEG_SIGMA = 0.11
+
+
+def _pair_frame(stamp_ns, legs, *, sigma=0.05):
+    """A frame whose only detection is a laser leg pair ``legs`` ``(2, 2)``: its centre as an observation,
+    then its two legs as alternative rows (``alt_of``), as the labeling pipeline passes them on."""
+    xy = np.concatenate([legs.mean(axis=0)[None], legs])
+    cov = np.concatenate([np.eye(2)[None] * sigma**2, np.tile(np.eye(2) * LEG_SIGMA**2, (2, 1, 1))])
+    alt = np.array([-1, 0, 0])
+    return Observations(stamp_ns, xy, cov, ("laser",) * 3, np.ones(3), None, np.arange(3), alt)
+
+
+def _with_pairs(paths, frames, legs_of):
+    obs = _frames(paths)
+    for i in frames:
+        obs[i] = _pair_frame(obs[i].stamp_ns, legs_of(paths[i]))
+    return obs
+
+
+def test_a_leg_pair_of_two_passing_people_is_split_between_them():
+    """P and Q pass 0.4 m apart; for five frames the laser paired the inner leg of each (the pair's centre
+    between them) and the online tracker gave the pair to P's track while Q's coasted."""
+    merged = range(28, 33)
+    obs = _with_pairs(_passing(), merged, lambda xy: xy + np.array([[0.0, -0.08], [0.0, 0.08]]))
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60) if i not in merged]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    for i in merged:
+        (p,) = [r for f, r in fixed[4] if f == i]
+        (q,) = [r for f, r in fixed[8] if f == i]
+        assert obs[i].alt_of[p] == 0  # a leg each
+        assert obs[i].alt_of[q] == 0
+        assert obs[i].xy[p][1] > 0 > obs[i].xy[q][1]  # P (y = +0.2) got its own leg, Q (y = -0.2) its own
+
+
+def test_one_persons_leg_pair_is_not_split_with_a_neighbour():
+    """P's own two legs mid-stride, paired, while Q passing 0.4 m away went unseen: P keeps its pair."""
+    merged = range(28, 33)
+    obs = _with_pairs(_passing(), merged, lambda xy: xy[0] + np.array([[-0.12, -0.05], [0.12, 0.05]]))
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60) if i not in merged]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
