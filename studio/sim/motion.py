@@ -7,7 +7,9 @@ step aside for each other and wait for the robot. Bodies do not overlap: a step 
 centres closer than 0.4 m is blocked (stepping apart is free). Someone whose way a person blocks walks
 around them instead, along their side; someone stuck for 2 s in a door passage squeezes past (two people
 meeting in a narrow door), and someone who cannot get past for 4 s in a room gives up that goal and
-chooses another. Odometry integrates the true wheel velocities with a
+chooses another. Routes keep 0.3 m clear of furniture, except that one may start closer and lead away
+(stepping around someone can leave a person next to a table, who must still be able to walk off).
+Odometry integrates the true wheel velocities with a
 per-run scale error, a small curvature bias and noise proportional to the speed, so it drifts only while
 the robot moves.
 """
@@ -106,12 +108,15 @@ def _in_room(x: float, y: float) -> bool:
 
 
 def _seg_clear(p: FloatArray, q: FloatArray, obstacles: FloatArray, margin: float) -> bool:
+    """Whether the segment ``p``–``q`` keeps ``margin`` clear of every obstacle. A segment that starts
+    closer than that to an obstacle (someone who stepped around a person next to a table) may still
+    leave it: heading away from it, its start is its closest point to it."""
     d = q - p
     L2 = float(d @ d) + 1e-12
     s = np.clip(((obstacles[:, :2] - p) @ d) / L2, 0.0, 1.0)
     closest = p + s[:, None] * d
     dist = np.hypot(*(obstacles[:, :2] - closest).T)
-    return bool(np.all(dist > obstacles[:, 2] + margin))
+    return bool(np.all((dist > obstacles[:, 2] + margin) | (s == 0.0)))
 
 
 class _Planner:

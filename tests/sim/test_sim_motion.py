@@ -133,3 +133,34 @@ def test_nobody_passes_through_anyone_in_the_moving_scenario():
         d = np.linalg.norm(P[:, :, None, :] - P[:, None, :, :], axis=-1)
         iu = np.triu_indices(P.shape[1], 1)
         assert d[:, iu[0], iu[1]].min() > sim_motion._BODY_GAP - 0.05, seed
+
+
+def test_someone_next_to_furniture_can_plan_a_way_out():
+    # stepping around a person can leave someone within the planner's 0.3 m margin of a table; every route
+    # from there used to fail, so they stood next to it for the rest of the recording (version 3)
+    world = build_world()
+    x, y, r = world.obstacles[int(np.argmax(world.obstacles[:, 2]))]
+    pos = np.array([x, y]) + (r + 0.1) * np.array([1.0, 0.0])
+    planner = sim_motion._Planner(world, np.zeros((1, 2)), np.random.default_rng(0))
+    assert planner.draw(pos, [], dwell=False, robot_room=planner.room_near(pos)) is not None
+    # ... but a route that passes the table as close is still refused
+    up = np.array([0.0, 1.0])
+    assert not sim_motion._seg_clear(pos - up, pos + up, world.obstacles, 0.3)
+
+
+def test_nobody_stands_stuck_in_the_moving_scenario(monkeypatch):
+    # seed 10 (version 3): three people stood 0.4 m apart next to a table for the last 40 s, none able
+    # to plan a way out; a failed plan costs a second of standing still
+    sc = get_scenario("moving")
+    r_motion, _, _ = np.random.default_rng(np.random.SeedSequence(10)).spawn(3)
+    failed = []
+    draw = sim_motion._Planner.draw
+
+    def counting(self, *args, **kwargs):
+        out = draw(self, *args, **kwargs)
+        failed.append(out is None)
+        return out
+
+    monkeypatch.setattr(sim_motion._Planner, "draw", counting)
+    sim_motion.simulate_motion(sc, build_world(), seconds=sc.seconds, rng=r_motion)
+    assert sum(failed) <= 2, sum(failed)
