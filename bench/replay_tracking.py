@@ -11,7 +11,9 @@ once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a 
 contract: delete it when the detectors change). Each call then runs the static-world filter, fusion and
 offline tracking exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also
 lists every identity switch (frame, ground-truth id, range from the robot, distance to the nearest other
-person, the track ids before and after). ``--image-period`` emulates another image detector period from a
+person, the track ids before and after, and its kind: an *encounter*'s, with someone else within 0.8 m;
+*after a gap*, where the person had gone unmatched for more than 10 frames; or *other*) and counts the
+kinds. ``--image-period`` emulates another image detector period from a
 pass one that ran the detector on every frame (stored separately). ``--laser-again`` runs the current
 laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
 in the last digits): a laser detector change measured in a minute instead of a new pass one.
@@ -24,6 +26,7 @@ from __future__ import annotations
 import argparse
 import pickle
 import time
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -100,10 +103,24 @@ def thin_images(frames: list[Any], period_s: float) -> list[Any]:
     return out
 
 
-def switches(labels: list[Any], ev: Any, gt: LabelSet) -> None:
-    """Print every identity switch with its context."""
+ENCOUNTER_M = 0.8  # a switch with another person this close is an encounter's
+GAP_FRAMES = 10  # a switch this many frames after the person's last match is a re-identification's
+
+
+def switch_kind(near_m: float, gap_frames: int) -> str:
+    """``encounter`` (someone else within :data:`ENCOUNTER_M`), ``after a gap`` (the person had gone
+    unmatched for more than :data:`GAP_FRAMES` frames: stitching or re-identification decided) or
+    ``other``."""
+    if near_m < ENCOUNTER_M:
+        return "encounter"
+    return "after a gap" if gap_frames > GAP_FRAMES else "other"
+
+
+def switches(labels: list[Any], ev: Any, gt: LabelSet) -> Counter[str]:
+    """Print every identity switch with its context; returns how many of each :func:`switch_kind`."""
     gt_frames = {f.frame: f for f in gt.frames}
     last: dict[int, tuple[int, int]] = {}
+    kinds: Counter[str] = Counter()
     for fe in ev.frames:
         match = {g: p for g, p, _ in fe.matches}
         for g in fe.switch_ids:
@@ -111,13 +128,16 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> None:
             others = [float(np.hypot(*(people[g] - v))) for k, v in people.items() if k != g]
             near = min(others, default=np.inf)
             before, was = last.get(g, (-1, -1))
+            kind = switch_kind(near, fe.frame - before)
+            kinds[kind] += 1
             print(
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its per-frame match in frame {before}) "
-                f"-> {match.get(g)}"
+                f"-> {match.get(g)} [{kind}]"
             )
         for g, p in match.items():
             last[g] = (fe.frame, p)
+    return kinds
 
 
 def main() -> None:
@@ -140,6 +160,7 @@ def main() -> None:
     )
     args = ap.parse_args()
     options = LabelOptions()
+    total: Counter[str] = Counter()
     for seed in args.seeds:
         rec = recording(args.scenario, args.seconds, seed)
         if args.image_period is None:
@@ -171,7 +192,11 @@ def main() -> None:
             flush=True,
         )
         if args.switches:
-            switches(labels, ev, gt)
+            kinds = switches(labels, ev, gt)
+            total += kinds
+            print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+    if args.switches and len(args.seeds) > 1:
+        print("all: " + ", ".join(f"{k} {n}" for k, n in sorted(total.items())))
 
 
 if __name__ == "__main__":
