@@ -1,4 +1,4 @@
-"""Re-decide who is who while two tracks are close, with the whole of both trajectories known.
+"""Re-decide who is who while people are close, with the whole of their trajectories known.
 
 The online tracker assigns each frame's detections from predictions made with the past alone. When two
 people come within half a metre, their detections merge or shift by a few decimetres and a coasting track's
@@ -11,18 +11,35 @@ again: a beam search over the frames (in each, the two observations kept or exch
 given to either track) runs both tracks' constant-velocity Kalman filters from their states before the
 encounter and scores each hypothesis by the negative log-likelihood of its observations, then of each
 track's own observations for ``tail_frames`` after the encounter. The best hypothesis replaces the online
-assignment when it scores ``margin`` better. Every observation stays with one of the two tracks; which
-track leaves the encounter as whom is left to the colours (:mod:`studio.track.swaps`) and to stitching.
+assignment when it scores ``margin`` better. Every observation stays with one of the two tracks.
 
-A laser leg pair that only one of the two tracks holds may also be split, one leg to each track: two
-people passing shoulder to shoulder put a leg of each side by side, the laser detector pairs them, and the
-pair's centre lies between both people. A split scores two observations (each leg with its own covariance,
-``Observations.alt_of``) where the pair scored one. A leg's term is negative, i.e. better than no
-observation, when it lies within about two standard deviations of its track's prediction (with the
-0.11 m leg σ and a track's own uncertainty, about 0.02 m² per axis, the normalisation term is about −2), so
-a split wins where both legs fit their tracks and the pair's centre fits neither. The online tracker splits
-pairs only between people walking together (``UkfTrackerConfig.split_pair_max_relative_speed``); here,
-with both trajectories known, people passing each other are split too.
+Clothing colours take part when both tracks were described by ``appearance_views`` observations before the
+encounter (their median colours are the tracks' colours then). A described observation given to a track
+costs ``appearance_weight`` per ΔE of its difference to that track's colours (counted up to
+``appearance_cap``), and the tracks may also leave the encounter *exchanged*: the beam search runs once with
+each track keeping its own tail and once with the tails exchanged (each track continuing on the other's
+observations after the encounter), and the median colours of each tail's first ``appearance_views``
+described observations after it count as that many observations of the track that continues with them.
+Motion alone cannot tell who leaves as whom when two people stand together or walk side by side (letting
+it exchange tails made things worse, session 9), and colours alone are fooled by a crop that shows the
+neighbour; together they decide the whole encounter at once. Without colours (a laser-only rig, someone the
+camera did not describe) the tracks leave as they came, and :mod:`studio.track.swaps` and stitching have
+the last word.
+
+Decided together, three or four tracks that come close at once (all ways of giving each frame's
+observations to them, every permutation of their tails) did not do better than pair by pair (session 18,
+``docs/results.md``), so encounters are decided in pairs.
+
+A laser leg pair may also be split, one leg to each of two tracks, in a frame where fewer observations
+than tracks were held: two people passing shoulder to shoulder put a leg of each side by side, the laser
+detector pairs them, and the pair's centre lies between both people. A split scores two observations
+(each leg with its own covariance, ``Observations.alt_of``) where the pair scored one. A leg's term is
+negative, i.e. better than no observation, when it lies within about two standard deviations of its
+track's prediction (with the 0.11 m leg σ and a track's own uncertainty, about 0.02 m² per axis, the
+normalisation term is about −2), so a split wins where both legs fit their tracks and the pair's centre
+fits neither. The online tracker splits pairs only between people walking together
+(``UkfTrackerConfig.split_pair_max_relative_speed``); here, with both trajectories known, people passing
+each other are split too.
 """
 
 from __future__ import annotations
@@ -34,13 +51,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from studio.track.appearance import appearance_distance, median_appearance
 from studio.track.base import Observations
 from studio.track.models import cv_matrix, white_accel_q
 
 __all__ = ["EncounterConfig", "reassign_encounters"]
 
 FloatArray = NDArray[np.float64]
-Hits = list[tuple[int, int]]
+Hit = tuple[int, int]
+Hits = list[Hit]
 # hits -> forward-filtered states (K, 4), their covariances (K, 4, 4) and the smoothed states (K, 4) over
 # the frames from the first hit's to the last hit's
 Estimator = Callable[[Hits], tuple[FloatArray, FloatArray, FloatArray]]
@@ -57,10 +76,16 @@ class EncounterConfig:
         tail_frames: frames after the encounter whose observations also score a hypothesis.
         beam: hypotheses kept per frame.
         margin: the new assignment must lower the negative log-likelihood by more than this.
+        appearance_weight: cost of a described observation per ΔE of colour difference to the colours of
+            the track it is given to (0: motion alone, and the tracks leave every encounter as they came).
+        appearance_cap: colour differences count up to this, ΔE.
+        appearance_views: described observations whose median colours are a track's colours before an
+            encounter and its tail's after it.
 
     ``pad_frames`` 10 and ``margin`` 5 (session 16; before 5 and 10): on 16 simulated ``moving`` recordings
     (seeds 1–8 of simulator versions 2 and 3) identity switches 128 → 112, F1 and MOTA up 0.001–0.002, IDF1
-    +0.003 / −0.004; laser-only replays 210 → 208 switches.
+    +0.003 / −0.004; laser-only replays 210 → 208 switches. Colours and exchanged tails: session 18
+    (``docs/results.md``).
     """
 
     close_m: float = 0.8
@@ -68,10 +93,15 @@ class EncounterConfig:
     tail_frames: int = 10
     beam: int = 16
     margin: float = 5.0
+    appearance_weight: float = 0.2
+    appearance_cap: float = 20.0
+    appearance_views: int = 5
 
     def __post_init__(self) -> None:
         if self.close_m <= 0 or self.beam < 1 or min(self.pad_frames, self.tail_frames, self.margin) < 0:
             raise ValueError("close_m and beam must be positive, pad_frames, tail_frames and margin >= 0")
+        if self.appearance_weight < 0 or self.appearance_cap <= 0 or self.appearance_views < 1:
+            raise ValueError("appearance_weight must be >= 0, appearance_cap and appearance_views positive")
 
 
 def _windows(
@@ -95,7 +125,7 @@ def _windows(
     return [(a, b, f0, f1) for f0, a, b, f1 in sorted(out)]
 
 
-_Option = tuple[tuple[int, int] | None, tuple[int, int] | None]
+_Option = tuple[Hit | None, ...]  # per track: the observation it is given, or None
 
 
 def _beam(
@@ -106,17 +136,19 @@ def _beam(
     frames: range,
     accel_sigma: float,
     beam: int,
+    app: dict[Hit, FloatArray],
 ) -> tuple[float, list[_Option]]:
-    """The best way through ``frames``, choosing one of ``options[i]`` (the observations of track 0 and of
-    track 1; none where absent) in each frame, by the negative log-likelihood of the chosen observations
-    under both tracks' constant-velocity Kalman filters started from ``x0`` ``(2, 4)``, ``P0``
-    ``(2, 4, 4)`` before the first frame. All kept hypotheses advance together (arrays over hypotheses);
-    the ``beam`` best survive each frame.
+    """The best way through ``frames``, choosing one of ``options[i]`` (the observation of each track; none
+    where absent) in each frame, by the negative log-likelihood of the chosen observations under the
+    tracks' constant-velocity Kalman filters started from ``x0`` ``(k, 4)``, ``P0`` ``(k, 4, 4)`` before
+    the first frame, plus the colour cost ``app[hit][track]`` of each described observation. All kept
+    hypotheses advance together (arrays over hypotheses); the ``beam`` best survive each frame.
 
     Returns:
-        The best hypothesis's negative log-likelihood and its choice in each frame.
+        The best hypothesis's score and its choice in each frame.
     """
-    x, P = x0[None].copy(), P0[None].copy()  # (H, 2, 4), (H, 2, 4, 4)
+    k = len(x0)
+    x, P = x0[None].copy(), P0[None].copy()  # (H, k, 4), (H, k, 4, 4)
     nll = np.zeros(1)
     back: list[tuple[NDArray[np.int64], NDArray[np.int64], list[_Option]]] = []
     for i in frames:
@@ -124,18 +156,19 @@ def _beam(
         F, Q = cv_matrix(dt), white_accel_q(dt, accel_sigma)
         x = x @ F.T
         P = F @ P @ F.T + Q
-        opts = options.get(i, [(None, None)])
+        opts = options.get(i, [(None,) * k])
         n_h, n_o = len(nll), len(opts)
         x = np.repeat(x, n_o, axis=0)
         P = np.repeat(P, n_o, axis=0)
         nll = np.repeat(nll, n_o)
-        for t in (0, 1):
+        for t in range(k):
             rows = [o for o, opt in enumerate(opts) if opt[t] is not None]
             if not rows:
                 continue
+            hits = [opts[o][t] for o in rows]
             sel = (np.arange(n_h)[:, None] * n_o + np.array(rows)[None, :]).ravel()
-            z = np.array([obs[i].xy[opts[o][t][1]] for o in rows])  # type: ignore[index]
-            R = np.array([obs[i].cov[opts[o][t][1]] for o in rows])  # type: ignore[index]
+            z = np.array([obs[i].xy[h[1]] for h in hits])  # type: ignore[index]
+            R = np.array([obs[i].cov[h[1]] for h in hits])  # type: ignore[index]
             z, R = np.tile(z, (n_h, 1)), np.tile(R, (n_h, 1, 1))
             xs, Ps = x[sel, t], P[sel, t]
             S = Ps[:, :2, :2] + R
@@ -147,6 +180,8 @@ def _beam(
             x[sel, t] = xs + np.einsum("hij,hj->hi", K, y)
             P[sel, t] = Ps - K @ Ps[:, :2, :]
             nll[sel] += 0.5 * (np.einsum("hi,hij,hj->h", y, Si, y) + np.log(det) + 2.0 * _LOG_2PI)
+            if app:
+                nll[sel] += np.tile([app[h][t] if h in app else 0.0 for h in hits], n_h)
         keep = np.argsort(nll, kind="stable")[:beam]
         back.append((keep // n_o, keep % n_o, opts))
         x, P, nll = x[keep], P[keep], nll[keep]
@@ -158,25 +193,42 @@ def _beam(
     return float(nll[0]), choice[::-1]
 
 
-def _hit(i: int, rows: dict[int, int]) -> tuple[int, int] | None:
-    return (i, rows[i]) if i in rows else None
-
-
-def _options(
-    o: Observations, i: int, ka: tuple[int, int] | None, kb: tuple[int, int] | None
-) -> list[_Option]:
-    """The ways to give frame ``i``'s observations held by the two tracks (``ka``, ``kb``) to them: both
-    kept or exchanged; one given to either, or, when it is a laser leg pair, its two legs one to each."""
-    if ka and kb:
-        return [(ka, kb), (kb, ka)]
-    k = ka or kb
-    out: list[_Option] = [(k, None), (None, k)]
-    if k is not None and o.alt_of is not None:
-        legs = np.flatnonzero(o.alt_of == k[1])
-        if len(legs) == 2:
-            la, lb = (i, int(legs[0])), (i, int(legs[1]))
-            out += [(la, lb), (lb, la)]
+def _options(o: Observations, i: int, held: Sequence[Hit | None]) -> list[_Option]:
+    """The ways to give frame ``i``'s observations held by the tracks (``held``, one entry per track) to
+    distinct tracks; where fewer were held than there are tracks, also a laser leg pair's two legs to
+    two tracks."""
+    k = len(held)
+    hits = [h for h in held if h is not None]
+    sets = [hits]
+    if o.alt_of is not None and len(hits) < k:
+        for n, h in enumerate(hits):
+            legs = np.flatnonzero(o.alt_of == h[1])
+            if len(legs) == 2:
+                sets.append([*hits[:n], (i, int(legs[0])), (i, int(legs[1])), *hits[n + 1 :]])
+    out = []
+    for items in sets:
+        for slots in itertools.permutations(range(k), len(items)):
+            opt: list[Hit | None] = [None] * k
+            for h, s in zip(items, slots, strict=True):
+                opt[s] = h
+            out.append(tuple(opt))
     return out
+
+
+def _colours(
+    obs: Sequence[Observations], hits: Hits, frame: int, views: int, *, after: bool
+) -> NDArray[np.float32] | None:
+    """Median colours of the ``views`` described observations nearest ``frame``, before or after it."""
+    rows = []
+    for i, r in hits if after else reversed(hits):
+        if (i <= frame) if after else (i >= frame):
+            continue
+        app = obs[i].appearance
+        if app is not None and np.all(np.isfinite(app[r])):
+            rows.append(app[r])
+            if len(rows) >= views:
+                break
+    return median_appearance(np.array(rows)) if len(rows) >= views else None
 
 
 def reassign_encounters(
@@ -194,37 +246,100 @@ def reassign_encounters(
     changed = 0
     smoothed = {tid: estimate(h)[2] for tid, h in tracks.items()}
     for a, b, f0, f1 in _windows(tracks, smoothed, cfg):
-        ha, hb = tracks[a], tracks[b]
-        if not all(h[0][0] < f0 <= h[-1][0] + 1 for h in (ha, hb)):
+        if not all(tracks[t][0][0] < f0 <= tracks[t][-1][0] + 1 for t in (a, b)):
             continue  # an earlier re-decision moved a track's start or end past the encounter
-        inside = [[k for k in h if f0 <= k[0] <= f1] for h in (ha, hb)]
-        if not inside[0] and not inside[1]:
-            continue
-        mine: dict[int, list[tuple[int, int] | None]] = {}
-        for t, ins in enumerate(inside):
-            for k in ins:
-                mine.setdefault(k[0], [None, None])[t] = k
-        last = min(f1 + cfg.tail_frames, len(obs) - 1)
-        tail = [{i: r for i, r in h if f1 < i <= last} for h in (ha, hb)]
-        fixed: dict[int, list[_Option]] = {
-            i: [(_hit(i, tail[0]), _hit(i, tail[1]))] for i in range(f1 + 1, last + 1)
-        }
-        current = fixed | {i: [(ka, kb)] for i, (ka, kb) in mine.items()}
-        every = fixed | {i: _options(obs[i], i, ka, kb) for i, (ka, kb) in mine.items()}
-        (xa, Pa, _), (xb, Pb, _) = estimate(ha), estimate(hb)
-        x0 = np.stack([xa[f0 - 1 - ha[0][0]], xb[f0 - 1 - hb[0][0]]])
-        P0 = np.stack([Pa[f0 - 1 - ha[0][0]], Pb[f0 - 1 - hb[0][0]]])
-        frames = range(f0, last + 1)
-        now, _ = _beam(obs, x0, P0, current, frames, accel_sigma, 1)
-        best, choice = _beam(obs, x0, P0, every, frames, accel_sigma, cfg.beam)
-        if best + cfg.margin >= now:
-            continue
-        moved: list[Hits] = [[], []]
-        for opt in choice[: f1 - f0 + 1]:
-            for t, hit in enumerate(opt):
-                if hit is not None:
-                    moved[t].append(hit)
-        tracks[a] = sorted([k for k in ha if not f0 <= k[0] <= f1] + moved[0])
-        tracks[b] = sorted([k for k in hb if not f0 <= k[0] <= f1] + moved[1])
-        changed += 1
+        changed += _redecide(obs, tracks, [a, b], f0, f1, estimate, accel_sigma, cfg)
     return tracks, changed
+
+
+def _redecide(
+    obs: Sequence[Observations],
+    tracks: dict[int, Hits],
+    pair: list[int],
+    f0: int,
+    f1: int,
+    estimate: Estimator,
+    accel_sigma: float,
+    cfg: EncounterConfig,
+) -> bool:
+    """Re-decide the encounter of the tracks ``pair`` over frames ``f0``–``f1`` in place (the code holds for
+    any number of tracks); whether anything changed."""
+    k = len(pair)
+    hs = [tracks[t] for t in pair]
+    held: dict[int, list[Hit | None]] = {}
+    for t, h in enumerate(hs):
+        for hit in h:
+            if f0 <= hit[0] <= f1:
+                held.setdefault(hit[0], [None] * k)[t] = hit
+    if not held:
+        return False
+    last = min(f1 + cfg.tail_frames, len(obs) - 1)
+    tails = [{i: r for i, r in h if f1 < i <= last} for h in hs]
+    app, before, after = _appearance(obs, hs, f0, last, cfg)
+    identity = tuple(range(k))
+    orders = list(itertools.permutations(range(k))) if app else [identity]
+
+    def tail(order: tuple[int, ...]) -> dict[int, list[_Option]]:
+        return {
+            i: [tuple((i, tails[s][i]) if i in tails[s] else None for s in order)]
+            for i in range(f1 + 1, last + 1)
+        }
+
+    def leaving(order: tuple[int, ...]) -> float:
+        """Colour cost of the tracks leaving the encounter with the tails of ``order``."""
+        if not app:
+            return 0.0
+        cost = 0.0
+        for ref, s in zip(before, order, strict=True):  # a tail without colours: half the cap, either way
+            c = after[s]
+            if c is None or ref is None:
+                cost += 0.5 * cfg.appearance_cap
+            else:
+                cost += min(appearance_distance(c, ref), cfg.appearance_cap)
+        return cfg.appearance_weight * cfg.appearance_views * cost
+
+    states = [estimate(h) for h in hs]
+    x0 = np.stack([x[f0 - 1 - h[0][0]] for (x, _, _), h in zip(states, hs, strict=True)])
+    P0 = np.stack([P[f0 - 1 - h[0][0]] for (_, P, _), h in zip(states, hs, strict=True)])
+    frames = range(f0, last + 1)
+    current = {i: [tuple(v)] for i, v in held.items()}
+    every = {i: _options(obs[i], i, v) for i, v in held.items()}
+    now = _beam(obs, x0, P0, tail(identity) | current, frames, accel_sigma, 1, app)[0] + leaving(identity)
+    best, choice, best_order = np.inf, [], identity
+    for order in orders:
+        score, path = _beam(obs, x0, P0, tail(order) | every, frames, accel_sigma, cfg.beam, app)
+        score += leaving(order)
+        if score < best:
+            best, choice, best_order = score, path, order
+    if best + cfg.margin >= now:
+        return False
+    moved: list[Hits] = [[] for _ in range(k)]
+    for opt in choice[: f1 - f0 + 1]:
+        for t, given in enumerate(opt):
+            if given is not None:
+                moved[t].append(given)
+    for t, s in enumerate(best_order):
+        outside = [hit for hit in hs[t] if hit[0] < f0] + [hit for hit in hs[s] if hit[0] > f1]
+        tracks[pair[t]] = sorted(outside + moved[t])
+    return True
+
+
+def _appearance(
+    obs: Sequence[Observations], hs: list[Hits], f0: int, last: int, cfg: EncounterConfig
+) -> tuple[dict[Hit, FloatArray], list[NDArray[np.float32] | None], list[NDArray[np.float32] | None]]:
+    """The colour cost, per track, of each described observation the tracks hold from ``f0`` to ``last``
+    (none when a track has no colours before the encounter), and each track's colours before the encounter
+    and its tail's after ``last``."""
+    views = cfg.appearance_views
+    before = [_colours(obs, h, f0, views, after=False) for h in hs]
+    after = [_colours(obs, h, last, views, after=True) for h in hs]
+    if cfg.appearance_weight <= 0 or any(c is None for c in before):
+        return {}, before, after
+    out = {}
+    for h in hs:
+        for i, r in h:
+            app = obs[i].appearance
+            if f0 <= i <= last and app is not None and np.all(np.isfinite(app[r])):
+                d = [min(appearance_distance(app[r], c), cfg.appearance_cap) for c in before]  # type: ignore[arg-type]
+                out[(i, r)] = cfg.appearance_weight * np.array(d)
+    return out, before, after

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -134,6 +136,10 @@ def test_config_is_checked():
         EncounterConfig(close_m=0.0)
     with pytest.raises(ValueError, match="close_m and beam must be positive"):
         EncounterConfig(beam=0)
+    with pytest.raises(ValueError, match="appearance_cap and appearance_views positive"):
+        EncounterConfig(appearance_cap=0.0)
+    with pytest.raises(ValueError, match="appearance_weight must be >= 0"):
+        EncounterConfig(appearance_weight=-0.1)
 
 
 def test_an_encounter_past_a_track_shortened_by_an_earlier_one_is_skipped(monkeypatch):
@@ -188,6 +194,63 @@ def test_one_persons_leg_pair_is_not_split_with_a_neighbour():
     merged = range(28, 33)
     obs = _with_pairs(_passing(), merged, lambda xy: xy[0] + np.array([[-0.12, -0.05], [0.12, 0.05]]))
     tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60) if i not in merged]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
+
+
+# clothing colours (L*a*b* of torso, then thighs) of two people: a red shirt and a green one
+RED = np.array([45.0, 60.0, 40.0, 30.0, 0.0, -30.0], np.float32)
+GREEN = np.array([60.0, -50.0, 40.0, 35.0, 5.0, -25.0], np.float32)
+
+
+def _coloured(obs, colours):
+    """``obs`` with row k of every frame described by ``colours[k]`` (rows are people, as in ``_frames``)."""
+    return [replace(o, appearance=np.stack([colours[k] for k in range(len(o.xy))])) for o in obs]
+
+
+def _meeting(n=80):
+    """P walks in from the left and Q from the right (1 m/s), both stand on one spot for 2 s, then P leaves
+    towards +y and Q towards -y: having stood still, neither's motion says which way it leaves."""
+    t = np.arange(n)
+    p = np.zeros((n, 2))
+    q = np.zeros((n, 2))
+    p[:, 0] = np.minimum(-1.0 + 0.1 * t, 2.0)
+    q[:, 0] = np.maximum(5.0 - 0.1 * t, 2.0)
+    q[:, 1] = 0.02
+    p[50:, 1] = 0.1 * (t[50:] - 49)
+    q[50:, 1] = 0.02 - 0.1 * (t[50:] - 49)
+    return np.stack([p, q], axis=1)
+
+
+def test_colours_decide_who_leaves_a_meeting_as_whom():
+    """The online tracker let P's track leave with Q: with colours, both tracks keep their people."""
+    obs = _coloured(_frames(_meeting()), [RED, GREEN])
+    tracks = {1: [(i, int(i >= 40)) for i in range(80)], 2: [(i, int(i < 40)) for i in range(80)]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    assert _rows(fixed[1]) == [0] * 80
+    assert _rows(fixed[2]) == [1] * 80
+
+
+def test_without_colours_tracks_leave_a_meeting_as_they_came():
+    obs = _frames(_meeting())
+    tracks = {1: [(i, int(i >= 40)) for i in range(80)], 2: [(i, int(i < 40)) for i in range(80)]}
+    fixed, changed = _run(obs, tracks)
+    assert changed == 0
+    assert fixed == tracks
+    # nor with colours turned off
+    fixed, changed = _run(_coloured(obs, [RED, GREEN]), tracks, appearance_weight=0.0)
+    assert changed == 0
+
+
+def test_a_neighbours_colours_in_a_few_crops_do_not_move_a_track():
+    """P and Q pass 0.4 m apart; for four frames each one's crop shows the other's clothes (one in front of
+    the other): motion keeps both tracks on their people."""
+    obs = _coloured(_frames(_passing()), [RED, GREEN])
+    for i in range(28, 32):
+        obs[i] = replace(obs[i], appearance=np.stack([GREEN, RED]))
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60)]}
     fixed, changed = _run(obs, tracks)
     assert changed == 0
     assert fixed == tracks
