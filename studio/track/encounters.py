@@ -51,9 +51,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.track.appearance import appearance_distance, median_appearance
+from studio.track.appearance import appearance_distance
 from studio.track.base import Observations
 from studio.track.models import cv_matrix, white_accel_q
+from studio.track.swaps import side_colours
 
 __all__ = ["EncounterConfig", "reassign_encounters"]
 
@@ -215,22 +216,6 @@ def _options(o: Observations, i: int, held: Sequence[Hit | None]) -> list[_Optio
     return out
 
 
-def _colours(
-    obs: Sequence[Observations], hits: Hits, frame: int, views: int, *, after: bool
-) -> NDArray[np.float32] | None:
-    """Median colours of the ``views`` described observations nearest ``frame``, before or after it."""
-    rows = []
-    for i, r in hits if after else reversed(hits):
-        if (i <= frame) if after else (i >= frame):
-            continue
-        app = obs[i].appearance
-        if app is not None and np.all(np.isfinite(app[r])):
-            rows.append(app[r])
-            if len(rows) >= views:
-                break
-    return median_appearance(np.array(rows)) if len(rows) >= views else None
-
-
 def reassign_encounters(
     obs: Sequence[Observations],
     tracks: dict[int, Hits],
@@ -331,8 +316,8 @@ def _appearance(
     (none when a track has no colours before the encounter), and each track's colours before the encounter
     and its tail's after ``last``."""
     views = cfg.appearance_views
-    before = [_colours(obs, h, f0, views, after=False) for h in hs]
-    after = [_colours(obs, h, last, views, after=True) for h in hs]
+    before = [side_colours(obs, h, f0, last, False, views) for h in hs]
+    after = [side_colours(obs, h, f0, last, True, views) for h in hs]
     if cfg.appearance_weight <= 0 or any(c is None for c in before):
         return {}, before, after
     out = {}

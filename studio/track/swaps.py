@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from studio.track.appearance import appearance_distance, median_appearance
 from studio.track.base import Observations
 
-__all__ = ["SwapConfig", "repair_swaps"]
+__all__ = ["SwapConfig", "repair_swaps", "side_colours"]
 
 # A track's hits: (frame index, row in that frame's Observations), in frame order.
 Hits = list[tuple[int, int]]
@@ -132,7 +132,7 @@ def _encounters(
     return [(a, b, int(first), int(cut), int(last)) for cut, a, b, first, last in out]
 
 
-def _side(
+def side_colours(
     obs: Sequence[Observations], hits: Hits, first: int, last: int, after: bool, views: int
 ) -> NDArray[np.float32] | None:
     """Median colours of the ``views`` described observations nearest the encounter, before or after it."""
@@ -151,7 +151,7 @@ def _swapped(
     obs: Sequence[Observations], ha: Hits, hb: Hits, first: int, last: int, cfg: SwapConfig
 ) -> tuple[NDArray[np.float32], NDArray[np.float32]] | None:
     """The colours of A and B before the encounter when the tracks came out of it swapped, else None."""
-    found = [_side(obs, h, first, last, after, cfg.views) for h in (ha, hb) for after in (False, True)]
+    found = [side_colours(obs, h, first, last, after, cfg.views) for h in (ha, hb) for after in (False, True)]
     sides = [s for s in found if s is not None]
     if len(sides) < 4:
         return None
