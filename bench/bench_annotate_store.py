@@ -3,6 +3,11 @@
 Targets (issue #6): 2 000 frames × ~10 people, open + replay of 1 000 ops < 2 s, one op < 50 ms.
 
     .venv/bin/python bench/bench_annotate_store.py [--frames 2000] [--people 10] [--ops 1000]
+    .venv/bin/python bench/bench_annotate_store.py --api
+
+``--api`` times the annotation server instead (no sensor data, through FastAPI's test client): one frame
+request, a move propagated over hundreds of frames, and a frame request right after it, which must not
+wait for the metrics that are recomputed in the background (until session 18 a unit test timed these).
 """
 
 from __future__ import annotations
@@ -68,12 +73,55 @@ def random_op(rng: random.Random, s: AnnotationStore) -> dict[str, Any]:
     return {"op": "review", "start": n, "end": min(s.num_frames - 1, n + 100)}
 
 
+def api(frames: int, people: int) -> None:
+    """Time the annotation server's frame requests and a propagated move on a generated run."""
+    from fastapi.testclient import TestClient
+
+    from studio.annotate.app import create_app
+    from studio.annotate.server import AnnotateServer
+
+    with tempfile.TemporaryDirectory() as tmp:
+        run = Path(tmp) / "run"
+        run.mkdir()
+        make_labels(run / "labels.jsonl", frames=frames, people=people)
+        state = AnnotateServer(run)
+        try:
+            with TestClient(create_app(state)) as client:
+                client.get("/api/metrics?wait=60")  # the startup evaluation
+                mid = frames // 2
+                t0 = time.perf_counter()
+                for n in range(mid, mid + 20):
+                    client.get(f"/api/frame/{n}").raise_for_status()
+                per_frame = (time.perf_counter() - t0) / 20
+                ids = [p["id"] for p in client.get(f"/api/frame/{mid}").json()["auto"]]
+                later = {p["id"] for p in client.get(f"/api/frame/{mid + 200}").json()["auto"]}
+                pid = next((k for k in ids if k in later), ids[0])  # one who lives on: a long propagation
+                body = {"op": "move", "frame": mid, "id": pid, "x": 0.0, "y": 3.0, "propagate": True}
+                t0 = time.perf_counter()
+                r = client.post("/api/op", json={"op": body, "base_rev": None, "client": "bench"})
+                t_op = time.perf_counter() - t0
+                r.raise_for_status()
+                t0 = time.perf_counter()
+                client.get(f"/api/frame/{mid + 1}").raise_for_status()
+                t_after = time.perf_counter() - t0
+        finally:
+            state.close()
+    print(f"run: {frames} frames, ~{people} people/frame; load average {os.getloadavg()[0]:.1f}")
+    print(f"one frame request: {1000 * per_frame:.1f} ms  (target < 100 ms)")
+    print(f"a move propagated over {len(r.json()['frames'])} frames: {1000 * t_op:.0f} ms  (target < 2 s)")
+    print(f"the next frame request, metrics recomputing: {1000 * t_after:.1f} ms  (target < 200 ms)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=2000)
     ap.add_argument("--people", type=int, default=10)
     ap.add_argument("--ops", type=int, default=1000)
+    ap.add_argument("--api", action="store_true", help="time the annotation server instead of the store")
     args = ap.parse_args()
+    if args.api:
+        api(args.frames, args.people)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         run = Path(tmp) / "run"
         run.mkdir()

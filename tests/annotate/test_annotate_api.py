@@ -6,7 +6,6 @@ import json
 import shutil
 import subprocess
 import sys
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -326,8 +325,9 @@ def test_laser_only_rig(run_copy: Path) -> None:
         state.close()
 
 
-def test_large_run_is_lazy(tmp_path: Path, make_run: Callable[..., Path]) -> None:
-    """2 000 frames, 12 tracks, no sensor data: frames and edits stay fast; metrics come in the background."""
+def test_a_large_run_serves_frames_and_edits(tmp_path: Path, make_run: Callable[..., Path]) -> None:
+    """2 000 frames, 12 tracks, no sensor data: frames are served and a propagated edit goes through while
+    the metrics come in the background (their speed: ``bench/bench_annotate_store.py --api``)."""
     run = tmp_path / "big"
     run.mkdir()
     make_run(run, num_frames=2000, tracks={k: (k * 90, min(1999, k * 90 + 900)) for k in range(12)})
@@ -338,26 +338,14 @@ def test_large_run_is_lazy(tmp_path: Path, make_run: Callable[..., Path]) -> Non
             assert meta["num_frames"] == 2000
             assert meta["media_problem"]
             assert not client.get("/api/metrics?wait=60").json()["stale"]  # the startup evaluation is done
-            client.get("/api/frame/1500")
-            t0 = time.perf_counter()
             for n in range(1000, 1020):
                 assert client.get(f"/api/frame/{n}").status_code == 200
-            per_frame = (time.perf_counter() - t0) / 20
-            t0 = time.perf_counter()
             r = op(client, {"op": "move", "frame": 1000, "id": 5, "x": 0.0, "y": 3.0, "propagate": True})
-            t_op = time.perf_counter() - t0
             assert r.status_code == 200
             assert len(r.json()["frames"]) > 100
-            t0 = time.perf_counter()
             assert client.get("/api/frame/1001").status_code == 200
-            t_after = time.perf_counter() - t0
             m = client.get("/api/metrics?wait=60").json()
             assert not m["stale"]
             assert 1000 in m["flagged"]
     finally:
         state.close()
-    # measured on 2 shared cores: ~0.01 s per frame, ~0.3 s for a move propagated over ~350 frames
-    timings = (per_frame, t_op, t_after)
-    assert per_frame < 0.1, timings
-    assert t_op < 2.0, timings
-    assert t_after < 0.2, timings
