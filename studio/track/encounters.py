@@ -44,6 +44,7 @@ each other are split too.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -251,16 +252,18 @@ def _redecide(
     any number of tracks); whether anything changed."""
     k = len(pair)
     hs = [tracks[t] for t in pair]
+    last = min(f1 + cfg.tail_frames, len(obs) - 1)
+    # each track's hits from f0 to last (hits are sorted by frame)
+    spans = [h[bisect.bisect_left(h, (f0, -1)) : bisect.bisect_left(h, (last + 1, -1))] for h in hs]
     held: dict[int, list[Hit | None]] = {}
-    for t, h in enumerate(hs):
-        for hit in h:
-            if f0 <= hit[0] <= f1:
+    for t, span in enumerate(spans):
+        for hit in span:
+            if hit[0] <= f1:
                 held.setdefault(hit[0], [None] * k)[t] = hit
     if not held:
         return False
-    last = min(f1 + cfg.tail_frames, len(obs) - 1)
-    tails = [{i: r for i, r in h if f1 < i <= last} for h in hs]
-    app, before, after = _appearance(obs, hs, f0, last, cfg)
+    tails = [{i: r for i, r in span if i > f1} for span in spans]
+    app, before, after = _appearance(obs, hs, spans, f0, last, cfg)
     identity = tuple(range(k))
     orders = list(itertools.permutations(range(k))) if app else [identity]
 
@@ -310,21 +313,21 @@ def _redecide(
 
 
 def _appearance(
-    obs: Sequence[Observations], hs: list[Hits], f0: int, last: int, cfg: EncounterConfig
+    obs: Sequence[Observations], hs: list[Hits], spans: list[Hits], f0: int, last: int, cfg: EncounterConfig
 ) -> tuple[dict[Hit, FloatArray], list[NDArray[np.float32] | None], list[NDArray[np.float32] | None]]:
     """The colour cost, per track, of each described observation the tracks hold from ``f0`` to ``last``
-    (none when a track has no colours before the encounter), and each track's colours before the encounter
-    and its tail's after ``last``."""
+    (their hits there: ``spans``; none when a track has no colours before the encounter), and each track's
+    colours before the encounter and its tail's after ``last``."""
     views = cfg.appearance_views
     before = [side_colours(obs, h, f0, last, False, views) for h in hs]
     after = [side_colours(obs, h, f0, last, True, views) for h in hs]
     if cfg.appearance_weight <= 0 or any(c is None for c in before):
         return {}, before, after
     out = {}
-    for h in hs:
-        for i, r in h:
+    for span in spans:
+        for i, r in span:
             app = obs[i].appearance
-            if f0 <= i <= last and app is not None and np.all(np.isfinite(app[r])):
+            if app is not None and np.all(np.isfinite(app[r])):
                 d = [min(appearance_distance(app[r], c), cfg.appearance_cap) for c in before]  # type: ignore[arg-type]
                 out[(i, r)] = cfg.appearance_weight * np.array(d)
     return out, before, after
