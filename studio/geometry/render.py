@@ -21,6 +21,7 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from collections.abc import Hashable, Sequence
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import cv2
@@ -116,7 +117,20 @@ class ViewRenderer:
         return lut
 
     def lut(self, view: PerspectiveView, pano_w: int, pano_h: int, *, nearest: bool = False) -> _Lut:
-        """The fixed-point LUT ``(map1, map2)`` of ``view`` for a ``pano_w × pano_h`` panorama (cached)."""
+        """The fixed-point LUT ``(map1, map2)`` of ``view`` for a ``pano_w × pano_h`` panorama (cached).
+
+        A view whose yaw is a whole number of panorama columns sees the panorama of the view at yaw 0
+        shifted by that many columns: its LUT is that one's, shifted (only the yaw-0 one is cached, so views
+        that follow people around the horizon cost no new table each).
+        """
+        cols = view.yaw / TWO_PI * pano_w
+        shift = round(cols)
+        if shift != 0 and abs(cols - shift) < 1e-6:
+            m1, m2 = self.lut(replace(view, yaw=0.0, name=""), pano_w, pano_h, nearest=nearest)
+            m1 = m1.copy()
+            # turning left (yaw +) looks at smaller u; x stays in [0, W) (remap wraps the +1 neighbour)
+            m1[..., 0] = (m1[..., 0].astype(np.int32) - shift) % pano_w
+            return m1, m2
 
         def build() -> _Lut:
             mx, my = view_maps(view, pano_w, pano_h)

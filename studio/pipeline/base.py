@@ -40,8 +40,9 @@ class LabelOptions:
         laser_detector: registry name (None: the classical detector).
         image_period_s: run the image detector at most this often, s (0: on every frame). The frames in
             between are fused from the laser alone; tracks carry the camera's confirmation across them.
-        quiet_view_period_s: with a detector that can look at part of the panorama (the bundled ones: their
-            views), the part where nobody was seen in the past second is looked at only this often, s (at
+        quiet_view_period_s: with a detector that can look at part of the panorama (the bundled ones:
+            MoveNet through narrow views on the busy columns, CenterNet through the views of its sweep that
+            see them), the part where nobody was seen in the past second is looked at only this often, s (at
             most ``image_period_s``: always all of it). The laser still sees people there in between, and
             a box found there brings its views back to every image.
         static_filter: suppress laser detections on structure that never moves (world-frame map).

@@ -438,6 +438,7 @@ def perceive(
         "sync": report.summary(),
         "image_looks": None if quiet is None else {"whole": quiet.whole, "partial": quiet.partial},
         "views_run": getattr(image_detector, "views_run", None),
+        "view_columns_run": getattr(image_detector, "view_columns_run", None),
         "frames": len(frames),
         "use_camera": use_camera,
         "use_laser": use_laser,

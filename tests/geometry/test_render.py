@@ -184,3 +184,19 @@ def test_cache_is_bounded_and_reused() -> None:
 def test_render_rejects_bad_panorama(bad: object) -> None:
     with pytest.raises(GeometryError):
         ViewRenderer().render(bad, PerspectiveView(0.0, 0.0, 1.0, 8, 8))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("pitch", [0.0, -0.2])
+def test_views_at_whole_columns_share_the_yaw0_table(pitch: float) -> None:
+    pano = smooth_uint8_panorama(4)
+    r = ViewRenderer()
+    for col in (1, 37, PW // 2, PW - 1, -200):  # PW // 2: looking back, across the seam
+        view = PerspectiveView(col * PIX, pitch, math.radians(50), 40, 60)
+        mx, my = view_maps(view, PW, PH)
+        direct = cv2.remap(pano, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP).astype(int)
+        d = np.abs(r.render(pano, view).astype(int) - direct)
+        assert d.max() <= 2  # the fixed-point tables round to 1/32 px
+    assert len(r) == 1  # one table: the view at yaw 0
+    off_grid = PerspectiveView(0.5 * PIX, pitch, math.radians(50), 40, 60)
+    r.render(pano, off_grid)
+    assert len(r) == 2

@@ -178,8 +178,9 @@ class ImageDetector(Protocol):
 
     A detector that can look at part of the panorama only sets ``looks_at_columns = True`` and accepts
     ``detect(pano, columns=mask)``, ``mask`` a ``(W,)`` boolean array of the panorama columns where someone
-    may be (the bundled ones run only the views that see one of them); ``studio label`` then looks at the
-    quiet part of the panorama less often (``LabelOptions.quiet_view_period_s``).
+    may be (MoveNet runs narrow views centred on them; CenterNet and YOLO exports run the
+    views of their sweep that see them); ``studio label`` then looks at the quiet part of the panorama less
+    often (``LabelOptions.quiet_view_period_s``).
     """
 
     name: str

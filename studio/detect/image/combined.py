@@ -99,6 +99,11 @@ class CombinedDetector:
         """Views inferred so far by both networks."""
         return self.centernet.views_run + self.movenet.views_run
 
+    @property
+    def view_columns_run(self) -> int:
+        """Their widths summed, px."""
+        return self.centernet.view_columns_run + self.movenet.view_columns_run
+
     def detect(self, pano: NDArray[np.uint8], *, columns: NDArray[np.bool_] | None = None) -> ImageDetections:
         """People in an equirectangular BGR uint8 panorama ``(H, W, 3)`` (``columns`` as
         :meth:`~studio.detect.image.sweep.ViewSweepDetector.detect`)."""

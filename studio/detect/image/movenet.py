@@ -127,7 +127,10 @@ class MoveNetDetector(ViewSweepDetector):
         self.keypoint_score = float(keypoint_score)
         self.model_path = Path(model_path) if model_path is not None else bundled_model(MODEL_FILE)
         self.session = load_session(self.model_path, threads=intra)
-        self._input = self.session.get_inputs()[0].name
+        inp = self.session.get_inputs()[0]
+        self._input = inp.name
+        # narrow windows need a network that takes any width (the bundled one does; an export may not)
+        self.windows = len(inp.shape) == 4 and not isinstance(inp.shape[2], int)
 
     def infer(self, x: NDArray[np.int32]) -> NDArray[np.float32]:
         """Run the network on one pre-processed input ``(1, h, w, 3)`` → ``(1, 6, 56)``."""

@@ -301,6 +301,33 @@ def merge_on_sphere(
     return ImageDetections(out_b[sort], out_s[sort], None if out_k is None else out_k[sort], pano_w, pano_h)
 
 
+def column_runs(columns: NDArray[np.bool_], *, gap: int = 0) -> list[tuple[int, int]]:
+    """Runs of set flags in a circular ``(W,)`` column mask, as ``(start, length)`` by ``start`` (in
+    [0, W); a run across the 0/W seam is one); runs separated by ``gap`` or fewer clear columns are one."""
+    cols = np.asarray(columns, dtype=bool).reshape(-1)
+    w = len(cols)
+    if not cols.any():
+        return []
+    if cols.all():
+        return [(0, w)]
+    first_clear = int(np.argmin(cols))
+    rolled = np.roll(cols, -first_clear)  # starts with a clear column: no run crosses the ends
+    edges = np.flatnonzero(np.diff(rolled.astype(np.int8)))
+    starts, ends = edges[0::2] + 1, edges[1::2] + 1  # [start, end) in rolled indices
+    if len(ends) < len(starts):
+        ends = np.append(ends, w)
+    runs: list[list[int]] = []
+    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+        if runs and a - runs[-1][1] <= gap:
+            runs[-1][1] = b
+        else:
+            runs.append([a, b])
+    if len(runs) > 1 and runs[0][0] + w - runs[-1][1] <= gap:  # across the seam
+        runs[0][0] = runs[-1][0] - w
+        runs.pop()
+    return sorted(((a + first_clear) % w, b - a) for a, b in runs)
+
+
 class ViewSweepDetector:
     """Base of the detectors that run a network on perspective views: subclasses give ``detect_view``.
 
@@ -315,6 +342,9 @@ class ViewSweepDetector:
     name = "sweep"
     thread_safe = True  # ``detect`` may run on several panoramas at once (see ``ImageDetector``)
     looks_at_columns = True  # ``detect`` takes ``columns`` (see ``ImageDetector``)
+    windows = False  # ``detect_view`` takes views of any width that is a multiple of 32 (:meth:`windows_for`)
+    window_min_px = 96  # narrowest window
+    window_gap_deg = 10.0  # runs of columns closer than this share a window
 
     def __init__(
         self,
@@ -330,6 +360,7 @@ class ViewSweepDetector:
         self.renderer = renderer or ViewRenderer()
         self.workers = max(1, int(workers))
         self.views_run = 0  # views inferred so far (``detect`` with ``columns`` may skip some)
+        self.view_columns_run = 0  # and their widths summed, px (windows are narrower than the sweep's)
         self._count_lock = threading.Lock()
         self._footprints: dict[int, NDArray[np.bool_]] = {}  # panorama width → (views, W) column masks
         # threads start on first use; made here so two threads' first detections share one pool
@@ -366,13 +397,50 @@ class ViewSweepDetector:
             self._footprints[w] = np.array(feet)
         return [int(i) for i in np.flatnonzero((self._footprints[w] & cols).any(axis=1))]
 
-    def _drop_cut(self, chosen: list[int], per_view: list[ViewDetections]) -> list[ViewDetections]:
+    def windows_for(self, columns: NDArray[np.bool_]) -> list[PerspectiveView] | None:
+        """Narrow views ("windows") that look at ``columns`` for fewer network pixels than the sweep's views.
+
+        Each run of adjacent columns (runs closer than ``window_gap_deg`` are one) gets a pinhole view
+        centred on it, as wide as the run needs (a multiple of 32 px, at least ``window_min_px``) at the
+        focal length, height and pitch of the sweep's views: a person is drawn at the same scale as in the
+        sweep, only less of the panorama around them is. None when the detector takes only its sweep's
+        width (``windows = False``), when a run is wider than a sweep view, or when the windows together are
+        no narrower than the sweep views that see the columns (:meth:`views_seeing`).
+        """
+        if not self.windows:
+            return None
+        cols = np.asarray(columns, dtype=bool).reshape(-1)
+        w = len(cols)
+        runs = column_runs(cols, gap=round(self.window_gap_deg / 360.0 * w))
+        if not runs:
+            return []
+        ref = self.views[0]
+        f = ref.focal
+        out = []
+        for start, length in runs:
+            half = math.pi * (length + 1) / w  # half the run's azimuth span, with half a column each side
+            if half >= ref.fov / 2.0:
+                return None
+            px = max(self.window_min_px, 32 * math.ceil(2.0 * f * math.tan(half) / 32.0))
+            if px > ref.width:
+                return None
+            # centred on a whole column: its look-up table is the yaw-0 window's, shifted (ViewRenderer.lut)
+            centre = round(start + length / 2.0) % w
+            yaw = (0.5 - centre / w) * 2.0 * math.pi
+            fov = 2.0 * math.atan(px / 2.0 / f)
+            out.append(PerspectiveView(yaw, ref.pitch, fov, px, ref.height, name=f"w{centre}"))
+        if sum(v.width for v in out) >= sum(self.views[i].width for i in self.views_seeing(cols)):
+            return None
+        return out
+
+    def _drop_cut(
+        self, chosen: list[PerspectiveView], per_view: list[ViewDetections]
+    ) -> list[ViewDetections]:
         """Without the boxes that touch a view's left or right border where no chosen view continues it: the
         person is cut there, and the view that would see them whole did not run."""
         out = []
-        for i, det in zip(chosen, per_view, strict=True):
-            v = self.views[i]
-            others = [self.views[j] for j in chosen if j != i]
+        for i, (v, det) in enumerate(zip(chosen, per_view, strict=True)):
+            others = [o for j, o in enumerate(chosen) if j != i]
             keep = np.ones(len(det), bool)
             for side, az in ((0, v.yaw + v.fov / 2.0 + 1e-3), (1, v.yaw - v.fov / 2.0 - 1e-3)):
                 if any(abs((az - o.yaw + math.pi) % (2.0 * math.pi) - math.pi) < o.fov / 2.0 for o in others):
@@ -395,19 +463,24 @@ class ViewSweepDetector:
 
         Args:
             pano: the panorama.
-            columns: ``(W,)`` mask of the panorama columns to look at: only the views that see one of them
-                run (:meth:`views_seeing`), and a box cut by a view's border is dropped where the next view
-                did not run. None: every view.
+            columns: ``(W,)`` mask of the panorama columns to look at: narrow windows on them
+                (:meth:`windows_for`), else the sweep views that see one of them (:meth:`views_seeing`);
+                a box cut by a view's border is dropped where no other view that ran continues it. None:
+                every view of the sweep.
         """
         w, h = check_pano(pano)
         if columns is not None and len(columns) != w:
             raise ValueError(f"columns: need one flag per panorama column ({w}), got {len(columns)}")
-        chosen = list(range(len(self.views))) if columns is None else self.views_seeing(columns)
-        views = [self.views[i] for i in chosen]
+        if columns is None:
+            views = self.views
+        else:
+            windows = self.windows_for(columns)
+            views = [self.views[i] for i in self.views_seeing(columns)] if windows is None else windows
         with self._count_lock:
             self.views_run += len(views)
+            self.view_columns_run += sum(v.width for v in views)
         per_view = self.detect_views(self.render_views(pano, views))
-        if len(views) < len(self.views):
-            per_view = self._drop_cut(chosen, per_view)
+        if views is not self.views:
+            per_view = self._drop_cut(views, per_view)
         b, s, k, m, vi = views_to_pano(views, per_view, w, h)
         return merge_on_sphere(b, s, k, m, vi, w, h, params=self.merge)

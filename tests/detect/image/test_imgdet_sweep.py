@@ -9,7 +9,7 @@ import pytest
 from imgdet_synth import OracleSweep, angles_to_uv, person_keypoints, person_outline
 
 from studio.detect.image.base import ViewDetections
-from studio.detect.image.sweep import MergeParams, SweepParams, merge_on_sphere, views_to_pano
+from studio.detect.image.sweep import MergeParams, SweepParams, column_runs, merge_on_sphere, views_to_pano
 from studio.geometry import PerspectiveView, pano_box_iou
 
 W, H = 1280, 640
@@ -189,3 +189,68 @@ def test_a_person_cut_by_a_border_whose_next_view_did_not_run_is_dropped():
     assert abs(out.boxes[0, :3:2].mean() - W * (0.5 - 25 / 360)) < 15
     both = det.detect(pano, columns=_columns((-5, 5), (60, 65)))  # view 1 runs too: whole there
     assert len(both) == 2
+
+
+def test_column_runs_wrap_the_seam_and_join_close_runs():
+    cols = np.zeros(100, bool)
+    assert column_runs(cols) == []
+    cols[10:20] = True
+    cols[25:30] = True
+    assert column_runs(cols) == [(10, 10), (25, 5)]
+    assert column_runs(cols, gap=5) == [(10, 20)]  # 5 clear columns between: one run
+    cols[95:] = True
+    cols[:3] = True  # across the seam: one run of 8 from column 95
+    assert column_runs(cols) == [(10, 10), (25, 5), (95, 8)]
+    assert column_runs(cols, gap=7) == [(95, 35)]  # all three: gaps of 7 and 5
+    assert column_runs(np.ones(100, bool)) == [(0, 100)]
+
+
+def _windowed(people: list[tuple[float, float]]) -> OracleSweep:
+    det = OracleSweep(people, W, H)
+    det.windows = True
+    return det
+
+
+def test_windows_centre_narrow_views_on_the_runs_at_the_sweeps_scale():
+    det = _windowed([])
+    ref = det.views[0]
+    (win,) = det.windows_for(_columns((-10, 10)))  # type: ignore[misc]
+    assert abs(math.degrees(win.yaw)) < 360 / W  # centred on the run, to a column
+    assert win.width % 32 == 0
+    assert det.window_min_px <= win.width < ref.width
+    assert math.isclose(win.focal, ref.focal)
+    assert win.height == ref.height
+    assert win.pitch == ref.pitch
+    assert math.degrees(win.fov) / 2 >= 10  # sees the whole run
+    back, ahead = det.windows_for(_columns((-10, 10), (170, -170)))  # type: ignore[misc]
+    assert {round(math.degrees(abs(v.yaw))) for v in (back, ahead)} == {0, 180}
+    assert det.windows_for(np.zeros(W, bool)) == []
+    # a run wider than a sweep view, or windows no narrower than the sweep views: the sweep's views
+    assert det.windows_for(_columns((-50, 50))) is None
+    assert det.windows_for(_columns(*[(a, a + 5) for a in range(0, 360, 20)])) is None
+    det.windows = False
+    assert det.windows_for(_columns((-10, 10))) is None
+
+
+def test_detect_through_windows_finds_the_people_in_the_columns_as_the_sweep_does():
+    people = [(math.radians(20), 3.0), (math.radians(-150), 2.0), (math.radians(100), 4.0)]
+    det = _windowed(people)
+    pano = np.zeros((H, W, 3), np.uint8)
+    everyone = det.detect(pano)
+    assert len(everyone) == 3
+    look = _columns((5, 35), (-170, -130))  # the people at 20° and -150°, not the one at 100°
+    out = det.detect(pano, columns=look)
+    assert det.views_run == 5 + 2  # two windows
+    assert det.view_columns_run < 5 * det.sweep.width + 2 * det.sweep.width
+    assert len(out) == 2
+    iou = pano_box_iou(out.boxes, everyone.boxes, W)
+    assert np.all(iou.max(axis=1) > 0.9)  # the same boxes as the whole sweep's
+
+
+def test_a_person_cut_by_a_windows_border_is_dropped():
+    # a window on 0°..10° is ~40° wide; a person 2 m away at 25° reaches into it from outside
+    det = _windowed([(math.radians(24), 2.0), (math.radians(5), 4.0)])
+    pano = np.zeros((H, W, 3), np.uint8)
+    out = det.detect(pano, columns=_columns((0, 10)))
+    assert len(out) == 1
+    assert abs(out.boxes[0, :3:2].mean() - W * (0.5 - 5 / 360)) < 15
