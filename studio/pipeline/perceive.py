@@ -319,11 +319,19 @@ def perceive(
     leg_memory: dict[int, Any] | None = {} if remembers_legs(laser_detector) else None
 
     def detect_image(
-        detector: Any, pano: NDArray[np.uint8], columns: NDArray[np.bool_] | None
+        detector: Any, pano: NDArray[np.uint8], columns: NDArray[np.bool_] | None, zoom: list[float]
     ) -> tuple[Any, NDArray[np.float32], float]:
         t = time.perf_counter()
-        det = detector.detect(pano) if columns is None else detector.detect(pano, columns=columns)
+        kw: dict[str, Any] = {} if columns is None else {"columns": columns}
+        if zoom:
+            kw["zoom"] = zoom
+        det = detector.detect(pano, **kw)
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
+
+    # people far away are a few pixels tall in the detector's views: where the laser found one, the image
+    # detector looks closer (one that takes views of any size, ``windows``; see ViewSweepDetector.detect)
+    zooms = getattr(image_detector, "windows", False) and use_laser
+    camera: Any = None
 
     # the part of the panorama where nobody was seen lately is looked at less often
     in_flight = 2  # image detections running at most while the next frames are read
@@ -383,11 +391,6 @@ def perceive(
             if frame.panorama is not None:
                 stamp = frame.panorama.stamp_ns
             due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
-            if use_camera and frame.panorama is not None and image_detector is not None and due:
-                last_image_ns = stamp
-                pano = frame.panorama.image
-                columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
-                job = pool.submit(detect_image, image_detector, pano, columns)
             t2 = time.perf_counter()
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector, leg_memory)
@@ -397,6 +400,17 @@ def perceive(
                 _, _, points, origins, owner = laser_in_base(frame, NoLaserDetector())
             t3 = time.perf_counter()
             t_las += t3 - t2
+            if use_camera and frame.panorama is not None and image_detector is not None and due:
+                last_image_ns = stamp
+                pano = frame.panorama.image
+                columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
+                zoom: list[float] = []
+                if zooms and laser is not None and len(laser.xy):
+                    if camera is None or camera.width != pano.shape[1]:
+                        camera = _camera_of(rig, pano)
+                    zoom = far_bearings(camera, laser.xy, laser_z)
+                job = pool.submit(detect_image, image_detector, pano, columns, zoom)
+            t3 = time.perf_counter()
             pf = PerceptionFrame(
                 frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
             )
@@ -445,6 +459,30 @@ def perceive(
         "rig": rig,
     }
     return frames, info
+
+
+ZOOM_RANGE_M = (4.5, 11.0)  # laser detections this far from the base get a closer look by the camera
+
+
+def far_bearings(camera: Any, xy: FloatArray, z: FloatArray) -> list[float]:
+    """Panorama azimuths (rad) of the laser detections ``xy`` ``(N, 2)`` (base frame, scan-plane heights
+    ``z``) that lie within :data:`ZOOM_RANGE_M` of the base."""
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    far = (r >= ZOOM_RANGE_M[0]) & (r <= ZOOM_RANGE_M[1])
+    if not far.any():
+        return []
+    uv, _ = camera.project(np.c_[xy[far], np.asarray(z, dtype=np.float64)[far]])
+    ok = np.isfinite(uv[:, 0])
+    return [float(a) for a in (0.5 - uv[ok, 0] / camera.width) * 2.0 * np.pi]
+
+
+def _camera_of(rig: Any, pano: NDArray[np.uint8]) -> Any:
+    """The rig's spherical camera for panoramas the size of ``pano`` (identity pose when it has none)."""
+    from studio.geometry import EquirectCamera
+    from studio.geometry.se import Pose3
+
+    pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
+    return EquirectCamera(pano.shape[1], pano.shape[0], pose, rig.camera.lens_offset)
 
 
 def base_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:

@@ -119,3 +119,50 @@ def test_beams_that_met_nothing_reach_the_static_map(recording):
             assert len(ends) == np.sum(f.open_owner == k)
             np.testing.assert_allclose(np.hypot(*(ends - origin).T), 10.0, atol=1e-3)
     assert info["static_map"].free.sum() > 0
+
+
+def test_far_laser_detections_give_the_bearings_to_look_closer_at():
+    from studio.geometry import EquirectCamera
+    from studio.geometry.se import Pose3
+    from studio.pipeline.perceive import ZOOM_RANGE_M, far_bearings
+
+    camera = EquirectCamera(1920, 960, Pose3.from_xyz_rpy(0.1, 0.0, 1.1, 0.0, 0.0, 0.0), 0.0)
+    xy = np.array([[6.0, 0.0], [0.0, 8.0], [3.0, 0.0], [-20.0, 0.0], [-7.0, -0.1]])
+    az = far_bearings(camera, xy, np.full(len(xy), 0.3))
+    assert len(az) == 3  # 3 m and 20 m away: no closer look
+    assert ZOOM_RANGE_M[0] <= 6.0
+    assert ZOOM_RANGE_M[1] < 20.0
+    np.testing.assert_allclose(az[0], 0.0, atol=1e-9)  # ahead
+    np.testing.assert_allclose(az[1], np.arctan2(8.0, -0.1), atol=1e-9)  # left, seen from the camera
+    assert abs(abs(az[2]) - np.pi) < 0.02  # behind, near the seam
+    assert far_bearings(camera, xy[2:4], np.zeros(2)) == []
+
+
+class _Zooming:
+    """A detector that can look closer (``windows``): records the bearings it was asked to look at."""
+
+    windows = True
+
+    def __init__(self) -> None:
+        self.zoom: list[list[float]] = []
+
+    def detect(self, pano: np.ndarray, *, zoom: tuple[float, ...] = ()) -> ImageDetections:
+        self.zoom.append(list(zoom))
+        h, w = pano.shape[:2]
+        return ImageDetections(np.zeros((0, 4)), np.zeros(0), None, w, h)
+
+
+def test_the_image_detector_looks_closer_where_the_laser_found_someone_far(recording, monkeypatch):
+    from studio.geometry import EquirectCamera
+    from studio.pipeline.perceive import far_bearings
+
+    det = _Zooming()
+    monkeypatch.setattr(image_detectors, "get_image_detector", lambda *a, **k: det)
+    rig = load_rig(recording / "rig.yaml")
+    frames, _ = perceive(recording / "recording.mcap", rig, LabelOptions())
+    looked = [f for f in frames if f.image is not None]
+    assert len(looked) == len(det.zoom)
+    camera = EquirectCamera(1920, 960, rig.camera.pose, rig.camera.lens_offset)
+    for f, asked in zip(looked, det.zoom, strict=True):
+        assert asked == pytest.approx(far_bearings(camera, f.laser.xy, f.laser_z))
+    assert sum(len(z) for z in det.zoom) > 0  # someone is far away in this recording

@@ -180,7 +180,9 @@ class ImageDetector(Protocol):
     ``detect(pano, columns=mask)``, ``mask`` a ``(W,)`` boolean array of the panorama columns where someone
     may be (MoveNet runs narrow views centred on them; CenterNet and YOLO exports run the
     views of their sweep that see them); ``studio label`` then looks at the quiet part of the panorama less
-    often (``LabelOptions.quiet_view_period_s``).
+    often (``LabelOptions.quiet_view_period_s``). One that also sets ``windows = True`` (MoveNet) accepts
+    ``zoom=bearings`` too, azimuths where the laser found someone 4.5–11 m away
+    (:func:`studio.pipeline.perceive.far_bearings`); where its views found nobody there, it looks closer.
     """
 
     name: str

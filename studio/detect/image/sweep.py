@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import os
 import threading
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from importlib import resources
@@ -345,6 +346,9 @@ class ViewSweepDetector:
     windows = False  # ``detect_view`` takes views of any width that is a multiple of 32 (:meth:`windows_for`)
     window_min_px = 96  # narrowest window
     window_gap_deg = 10.0  # runs of columns closer than this share a window
+    zoom_fov_deg = (24.0, 40.0)  # a zoom view's horizontal and vertical field of view (:meth:`zoom_views`)
+    zoom_pitch_deg = -5.0  # and the elevation of its axis
+    zoom_factor = 2.5  # its focal length: at most this many times the sweep's, at most the panorama's own
 
     def __init__(
         self,
@@ -433,6 +437,33 @@ class ViewSweepDetector:
             return None
         return out
 
+    def zoom_views(self, bearings: Sequence[float], boxes: FloatArray, pano_w: int) -> list[PerspectiveView]:
+        """Views at a higher focal length centred on ``bearings`` (azimuths, rad) where none of ``boxes``
+        (seam-form panorama px) lies: someone far away, a few pixels tall in the sweep's views, whom another
+        sensor (the laser) has found there. Bearings within a quarter of a zoom view of one already chosen
+        share it. Empty when the detector takes only its sweep's size (``windows = False``)."""
+        if not self.windows or not len(bearings):
+            return []
+        ref = self.views[0]
+        f = min(pano_w / (2.0 * math.pi), self.zoom_factor * ref.focal)
+        hfov, vfov = (math.radians(a) for a in self.zoom_fov_deg)
+        width = 32 * max(1, round(2.0 * f * math.tan(hfov / 2.0) / 32.0))
+        height = 32 * max(1, round(2.0 * f * math.tan(vfov / 2.0) / 32.0))
+        fov = 2.0 * math.atan(width / 2.0 / f)
+        b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+        out: list[PerspectiveView] = []
+        for az in bearings:
+            u = (0.5 - az / (2.0 * math.pi)) * pano_w
+            if len(b) and np.any((u - b[:, 0]) % pano_w <= b[:, 2] - b[:, 0]):
+                continue
+            centre = round(u) % pano_w  # a whole column: the yaw-0 zoom view's look-up table, shifted
+            yaw = (0.5 - centre / pano_w) * 2.0 * math.pi
+            if any(abs((yaw - v.yaw + math.pi) % (2.0 * math.pi) - math.pi) < fov / 4.0 for v in out):
+                continue
+            pitch = math.radians(self.zoom_pitch_deg)
+            out.append(PerspectiveView(yaw, pitch, fov, width, height, name=f"z{centre}"))
+        return out
+
     def _drop_cut(
         self, chosen: list[PerspectiveView], per_view: list[ViewDetections]
     ) -> list[ViewDetections]:
@@ -458,7 +489,13 @@ class ViewSweepDetector:
             return [self.detect_view(img) for img in images]
         return list(self._pool.map(self.detect_view, images))
 
-    def detect(self, pano: NDArray[np.uint8], *, columns: NDArray[np.bool_] | None = None) -> ImageDetections:
+    def detect(
+        self,
+        pano: NDArray[np.uint8],
+        *,
+        columns: NDArray[np.bool_] | None = None,
+        zoom: Sequence[float] = (),
+    ) -> ImageDetections:
         """People in an equirectangular BGR uint8 panorama ``(H, W, 3)``.
 
         Args:
@@ -467,6 +504,8 @@ class ViewSweepDetector:
                 (:meth:`windows_for`), else the sweep views that see one of them (:meth:`views_seeing`);
                 a box cut by a view's border is dropped where no other view that ran continues it. None:
                 every view of the sweep.
+            zoom: azimuths (rad, panorama convention) where someone far away may stand: where the views
+                found nobody there, a closer look (:meth:`zoom_views`) runs too.
         """
         w, h = check_pano(pano)
         if columns is not None and len(columns) != w:
@@ -476,10 +515,14 @@ class ViewSweepDetector:
         else:
             windows = self.windows_for(columns)
             views = [self.views[i] for i in self.views_seeing(columns)] if windows is None else windows
+        per_view = self.detect_views(self.render_views(pano, views))
+        closer = self.zoom_views(zoom, views_to_pano(views, per_view, w, h)[0], w)
+        if closer:
+            per_view += self.detect_views(self.render_views(pano, closer))
+            views = [*views, *closer]
         with self._count_lock:
             self.views_run += len(views)
             self.view_columns_run += sum(v.width for v in views)
-        per_view = self.detect_views(self.render_views(pano, views))
         if views is not self.views:
             per_view = self._drop_cut(views, per_view)
         b, s, k, m, vi = views_to_pano(views, per_view, w, h)

@@ -254,3 +254,34 @@ def test_a_person_cut_by_a_windows_border_is_dropped():
     out = det.detect(pano, columns=_columns((0, 10)))
     assert len(out) == 1
     assert abs(out.boxes[0, :3:2].mean() - W * (0.5 - 5 / 360)) < 15
+
+
+class _ShortSighted(OracleSweep):
+    """The oracle, blind to people under 40 px tall in a view (as a network is to people far away)."""
+
+    def detect_view(self, image: np.ndarray) -> ViewDetections:
+        d = super().detect_view(image)
+        tall = d.boxes[:, 3] - d.boxes[:, 1] >= 40 if len(d) else np.zeros(0, bool)
+        kp = None if d.keypoints is None else d.keypoints[tall]
+        return ViewDetections(d.boxes[tall], d.scores[tall], kp)
+
+
+def test_zoom_looks_closer_at_a_far_bearing_where_the_views_found_nobody():
+    far, near = (math.radians(30), 8.0), (math.radians(-90), 2.0)
+    det = _ShortSighted([far, near], W, H)
+    det.windows = True
+    pano = np.zeros((H, W, 3), np.uint8)
+    assert len(det.detect(pano)) == 1  # 27-38 px tall in the sweep's views: missed
+    run = det.views_run
+    out = det.detect(pano, zoom=[far[0], far[0] + math.radians(2), near[0]])
+    assert det.views_run == run + 5 + 1  # one closer look: the near person has a box, two bearings share
+    assert len(out) == 2
+    iou = pano_box_iou(out.boxes, _gt_box(*far)[None], W).max()
+    assert iou > 0.8
+    (view,) = det.zoom_views([far[0]], np.zeros((0, 4)), W)
+    assert view.focal > 1.5 * det.views[0].focal  # the panorama's own resolution here (2.5× at most)
+    assert math.isclose(view.focal, W / (2 * math.pi), rel_tol=0.1)
+    assert view.width % 32 == 0
+    assert view.height % 32 == 0
+    det.windows = False  # a network of one input size: no closer looks
+    assert det.zoom_views([far[0]], np.zeros((0, 4)), W) == []
