@@ -405,7 +405,7 @@ def perceive(
                 pano = frame.panorama.image
                 columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
                 zoom: list[float] = []
-                if zooms and laser is not None and len(laser.xy):
+                if zooms and columns is None and laser is not None and len(laser.xy):  # on whole looks
                     if camera is None or camera.width != pano.shape[1]:
                         camera = _camera_of(rig, pano)
                     zoom = far_bearings(camera, laser.xy, laser_z)

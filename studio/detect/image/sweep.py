@@ -346,7 +346,7 @@ class ViewSweepDetector:
     windows = False  # ``detect_view`` takes views of any width that is a multiple of 32 (:meth:`windows_for`)
     window_min_px = 96  # narrowest window
     window_gap_deg = 10.0  # runs of columns closer than this share a window
-    zoom_fov_deg = (24.0, 40.0)  # a zoom view's horizontal and vertical field of view (:meth:`zoom_views`)
+    zoom_fov_deg = (18.0, 35.0)  # a zoom view's horizontal and vertical field of view (:meth:`zoom_views`)
     zoom_pitch_deg = -5.0  # and the elevation of its axis
     zoom_factor = 2.5  # its focal length: at most this many times the sweep's, at most the panorama's own
 
