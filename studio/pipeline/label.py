@@ -26,7 +26,14 @@ from studio.fuse.fusion import fuse_frame
 from studio.geometry import EquirectCamera
 from studio.labels.base import LabelFrame, LabelPerson, as_box
 from studio.pipeline.base import FrameResult, LabelOptions
-from studio.pipeline.perceive import PerceptionFrame, base_scans, detect_again, odom_scans, perceive
+from studio.pipeline.perceive import (
+    PerceptionFrame,
+    base_scans,
+    detect_again,
+    odom_scans,
+    perceive,
+    rig_camera,
+)
 from studio.track.appearance import APPEARANCE_DIM
 
 __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
@@ -439,12 +446,9 @@ def label_recording(
     camera = None
     rig = info["rig"]
     if "size" in sizes and rig.camera is not None:
-        from studio.geometry.se import Pose3
-
         if rig.camera.pose is None:
             notes.append("the camera pose is neither in the rig nor in the bag's TF: identity assumed")
-        pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
-        camera = EquirectCamera(sizes["size"][0], sizes["size"][1], pose, rig.camera.lens_offset)
+        camera = rig_camera(rig, *sizes["size"])
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_maps=info["body_maps"])
     t2 = time.perf_counter()

@@ -407,7 +407,7 @@ def perceive(
                 zoom: list[float] = []
                 if zooms and columns is None and laser is not None and len(laser.xy):  # on whole looks
                     if camera is None or camera.width != pano.shape[1]:
-                        camera = _camera_of(rig, pano)
+                        camera = rig_camera(rig, pano.shape[1], pano.shape[0])
                     zoom = far_bearings(camera, laser.xy, laser_z)
                 job = pool.submit(detect_image, image_detector, pano, columns, zoom)
             t3 = time.perf_counter()
@@ -476,13 +476,13 @@ def far_bearings(camera: Any, xy: FloatArray, z: FloatArray) -> list[float]:
     return [float(a) for a in (0.5 - uv[ok, 0] / camera.width) * 2.0 * np.pi]
 
 
-def _camera_of(rig: Any, pano: NDArray[np.uint8]) -> Any:
-    """The rig's spherical camera for panoramas the size of ``pano`` (identity pose when it has none)."""
+def rig_camera(rig: Any, width: int, height: int) -> Any:
+    """The rig's spherical camera for ``width × height`` panoramas (identity pose when it has none)."""
     from studio.geometry import EquirectCamera
     from studio.geometry.se import Pose3
 
     pose = rig.camera.pose if rig.camera.pose is not None else Pose3.identity()
-    return EquirectCamera(pano.shape[1], pano.shape[0], pose, rig.camera.lens_offset)
+    return EquirectCamera(width, height, pose, rig.camera.lens_offset)
 
 
 def base_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray]]:
