@@ -473,7 +473,7 @@ def far_bearings(camera: Any, xy: FloatArray, z: FloatArray) -> list[float]:
         return []
     uv, _ = camera.project(np.c_[xy[far], np.asarray(z, dtype=np.float64)[far]])
     ok = np.isfinite(uv[:, 0])
-    return [float(a) for a in (0.5 - uv[ok, 0] / camera.width) * 2.0 * np.pi]
+    return [float(a) for a in camera.pixel_to_angles(uv[ok, 0], uv[ok, 1])[0]]
 
 
 def rig_camera(rig: Any, width: int, height: int) -> Any:

@@ -34,7 +34,15 @@ from numpy.typing import NDArray
 
 from studio.detect.image.base import ImageDetections, ViewDetections
 from studio.detect.image.errors import ImageDetectorError
-from studio.geometry import PerspectiveView, ViewRenderer, horizon_views, merge_pano_boxes, pano_box_iou
+from studio.geometry import (
+    PerspectiveView,
+    ViewRenderer,
+    angles_to_pixel,
+    horizon_views,
+    merge_pano_boxes,
+    pano_box_iou,
+    pixel_to_angles,
+)
 
 __all__ = [
     "MergeParams",
@@ -430,7 +438,7 @@ class ViewSweepDetector:
                 return None
             # centred on a whole column: its look-up table is the yaw-0 window's, shifted (ViewRenderer.lut)
             centre = round(start + length / 2.0) % w
-            yaw = (0.5 - centre / w) * 2.0 * math.pi
+            yaw = float(pixel_to_angles(centre, 0.0, w, 1.0)[0])
             fov = 2.0 * math.atan(px / 2.0 / f)
             out.append(PerspectiveView(yaw, ref.pitch, fov, px, ref.height, name=f"w{centre}"))
         if sum(v.width for v in out) >= sum(self.views[i].width for i in self.views_seeing(cols)):
@@ -453,11 +461,11 @@ class ViewSweepDetector:
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
         out: list[PerspectiveView] = []
         for az in bearings:
-            u = (0.5 - az / (2.0 * math.pi)) * pano_w
+            u = float(angles_to_pixel(az, 0.0, pano_w, 1.0)[0])
             if len(b) and np.any((u - b[:, 0]) % pano_w <= b[:, 2] - b[:, 0]):
                 continue
             centre = round(u) % pano_w  # a whole column: the yaw-0 zoom view's look-up table, shifted
-            yaw = (0.5 - centre / pano_w) * 2.0 * math.pi
+            yaw = float(pixel_to_angles(centre, 0.0, pano_w, 1.0)[0])
             if any(abs((yaw - v.yaw + math.pi) % (2.0 * math.pi) - math.pi) < fov / 4.0 for v in out):
                 continue
             pitch = math.radians(self.zoom_pitch_deg)
@@ -516,7 +524,7 @@ class ViewSweepDetector:
             windows = self.windows_for(columns)
             views = [self.views[i] for i in self.views_seeing(columns)] if windows is None else windows
         per_view = self.detect_views(self.render_views(pano, views))
-        closer = self.zoom_views(zoom, views_to_pano(views, per_view, w, h)[0], w)
+        closer = self.zoom_views(zoom, views_to_pano(views, per_view, w, h)[0], w) if len(zoom) else []
         if closer:
             per_view += self.detect_views(self.render_views(pano, closer))
             views = [*views, *closer]
