@@ -60,7 +60,11 @@ class OfflineConfig:
             (:mod:`studio.track.encounters`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
         interpolate_max_gap_s: gaps in a track up to this long (between the observations around them) get
-            interpolated positions; longer gaps stay empty, seconds.
+            interpolated positions; longer gaps stay empty, seconds. The default is stitching's motion
+            bridge (``StitchConfig.max_gap_s``): a gap that motion can bridge is given positions.
+        interpolate_max_speed, interpolate_any_speed_s: a gap longer than ``interpolate_any_speed_s`` is
+            interpolated only if the track crosses it at no more than ``interpolate_max_speed`` (m/s, a
+            brisk walk): a straight path is a poor guess for a fast one, which is often a wrong link.
         split_gap_s: a track of the online pass is cut into tracklets where it went unobserved for longer
             than this, seconds (a coasting track's wide gate may have caught clutter or someone else).
         min_tracklet_hits: tracklets with fewer observations are dropped before stitching.
@@ -80,7 +84,9 @@ class OfflineConfig:
     swaps: SwapConfig | None = field(default_factory=SwapConfig)
     encounters: EncounterConfig | None = field(default_factory=EncounterConfig)
     smooth: bool = True
-    interpolate_max_gap_s: float = 1.0
+    interpolate_max_gap_s: float = 3.0
+    interpolate_max_speed: float = 1.5
+    interpolate_any_speed_s: float = 1.0
     split_gap_s: float = 0.5
     min_tracklet_hits: int = 3
     min_track_duration_s: float = 0.5
@@ -216,8 +222,11 @@ def _points(
     out = []
     for a, b in itertools.pairwise(hit_frames):
         out.append((a, det_of[a]))
-        if b > a + 1 and (obs[b].stamp_ns - obs[a].stamp_ns) * 1e-9 <= cfg.interpolate_max_gap_s:
-            out.extend((i, -1) for i in range(a + 1, b))
+        gap = (obs[b].stamp_ns - obs[a].stamp_ns) * 1e-9
+        if b > a + 1 and gap <= cfg.interpolate_max_gap_s:
+            step = float(np.hypot(*(x[b - first, :2] - x[a - first, :2])))
+            if gap <= cfg.interpolate_any_speed_s or step <= cfg.interpolate_max_speed * gap:
+                out.extend((i, -1) for i in range(a + 1, b))
     out.append((hit_frames[-1], det_of[hit_frames[-1]]))
     return [
         (

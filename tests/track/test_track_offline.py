@@ -179,3 +179,33 @@ def test_shared_detection_settings_are_checked():
         OfflineConfig(shared_radius=-0.1)
     with pytest.raises(ValueError, match="non-negative"):
         OfflineConfig(shared_sigma=-0.1)
+
+
+def _walker_with_gap(speed: float, gap: tuple[float, float]) -> list[Observations]:
+    """One person walking along x at ``speed`` m/s for 10 s at 10 Hz, unseen during ``gap`` (s)."""
+    rng = np.random.default_rng(3)
+    out = []
+    for k in range(100):
+        t = 0.1 * k
+        if gap[0] <= t < gap[1]:
+            out.append(Observations.empty(int(t * 1e9)))
+        else:
+            xy = np.array([[speed * t, 1.0]]) + rng.normal(0.0, 0.03, (1, 2))
+            out.append(Observations.create(int(t * 1e9), xy, sigma_m=0.05))
+    return out
+
+
+@pytest.mark.parametrize(("speed", "bridged"), [(1.0, True), (2.2, False)])
+def test_gaps_that_motion_bridges_get_positions_unless_crossed_fast(speed, bridged):
+    # a 2 s gap, longer than the 1 s always given positions and shorter than stitching's 3 s motion bridge
+    obs = _walker_with_gap(speed, (4.0, 6.0))
+    res = track_offline(obs)
+    assert res.track_ids() == [0]  # stitched either way
+    in_gap = [p for f in res.frames[41:60] for p in f.points]
+    if not bridged:  # 2.2 m/s: a straight line is a poor guess (and a link that fast is often wrong)
+        assert in_gap == []
+        return
+    assert len(in_gap) == 19
+    assert all(p.interpolated for p in in_gap)
+    err = [abs(p.xy[0] - speed * 0.1 * k) for k, f in enumerate(res.frames) for p in f.points if 40 < k < 60]
+    assert max(err) < 0.3
