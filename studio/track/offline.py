@@ -97,6 +97,15 @@ class OfflineConfig:
     shared_sigma: float = 0.3
 
     def __post_init__(self) -> None:
+        if (
+            self.interpolate_max_gap_s < 0
+            or self.interpolate_any_speed_s < 0
+            or self.interpolate_max_speed <= 0
+        ):
+            raise ValueError(
+                "interpolate_max_gap_s and interpolate_any_speed_s must be non-negative, "
+                "interpolate_max_speed positive"
+            )
         if self.shared_radius < 0 or self.shared_sigma < 0:
             raise ValueError("shared_radius and shared_sigma must be non-negative")
 

@@ -179,6 +179,10 @@ def test_shared_detection_settings_are_checked():
         OfflineConfig(shared_radius=-0.1)
     with pytest.raises(ValueError, match="non-negative"):
         OfflineConfig(shared_sigma=-0.1)
+    with pytest.raises(ValueError, match="interpolate_max_speed positive"):
+        OfflineConfig(interpolate_max_speed=0.0)
+    with pytest.raises(ValueError, match="interpolate_max_gap_s"):
+        OfflineConfig(interpolate_max_gap_s=-1.0)
 
 
 def _walker_with_gap(speed: float, gap: tuple[float, float]) -> list[Observations]:
