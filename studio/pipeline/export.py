@@ -105,7 +105,8 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "  (`fused`: box confirmed by laser; `laser`: laser only, on a rig with a camera output only near",
         "  frames where the camera saw that person, alone or in one box with someone beside them; `image`:",
         "  range from the box's foot row;",
-        '  people marked `"interpolated": true` in labels.jsonl bridge a gap of up to 3 s with the smoother)',
+        '  people marked `"interpolated": true` in labels.jsonl bridge a gap of up to '
+        f"{options.tracking.interpolate_max_gap_s:g} s with the smoother)",
         "",
         "## Known limits",
         "- These are automatic labels: check them (`studio annotate`) before using them as ground truth.",

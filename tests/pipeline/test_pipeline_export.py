@@ -54,3 +54,4 @@ def test_the_dataset_card_says_how_the_labels_were_made(run: Path) -> None:
     for part in ("## How the labels were produced", "## Known limits", "person labels; by source"):
         assert part in card
     assert "movenet" in card
+    assert "bridge a gap of up to 3 s with the smoother" in card  # the run's own tracking setting

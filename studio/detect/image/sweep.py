@@ -458,6 +458,7 @@ class ViewSweepDetector:
         width = 32 * max(1, round(2.0 * f * math.tan(hfov / 2.0) / 32.0))
         height = 32 * max(1, round(2.0 * f * math.tan(vfov / 2.0) / 32.0))
         fov = 2.0 * math.atan(width / 2.0 / f)
+        pitch = math.radians(self.zoom_pitch_deg)
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
         out: list[PerspectiveView] = []
         for az in bearings:
@@ -468,7 +469,6 @@ class ViewSweepDetector:
             yaw = float(pixel_to_angles(centre, 0.0, pano_w, 1.0)[0])
             if any(abs((yaw - v.yaw + math.pi) % (2.0 * math.pi) - math.pi) < fov / 4.0 for v in out):
                 continue
-            pitch = math.radians(self.zoom_pitch_deg)
             out.append(PerspectiveView(yaw, pitch, fov, width, height, name=f"z{centre}"))
         return out
 
