@@ -18,7 +18,12 @@ pass one that ran the detector on every frame (stored separately). ``--laser-aga
 laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
 in the last digits): a laser detector change measured in a minute instead of a new pass one.
 ``--laser-only`` drops the stored image detections and labels as ``studio label --sources laser`` (the
-path of a rig without a camera). The recordings are those of ``bench/run_table.py``.
+path of a rig without a camera). ``--oracle`` replaces the association (online pass, stitching, encounter
+and swap repairs) by the ground truth: in every frame the observations go one to one to the nearest people
+within 0.5 m (Hungarian), and each person's observations are smoothed, interpolated and output as ``studio
+label`` outputs a track (:func:`studio.track.offline.tracks_from_hits`); fusion, the camera gate and the
+rest are unchanged. What it scores is what these detections allow with a perfect association: the part of
+the errors that tracking can still remove. The recordings are those of ``bench/run_table.py``.
 """
 
 from __future__ import annotations
@@ -43,6 +48,9 @@ from studio.labels import LabelSet, read_labels
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, perceive, track_all
 from studio.pipeline.perceive import detect_again, off_people
+from studio.track.offline import tracks_from_hits
+
+ORACLE_GATE_M = 0.5  # --oracle: an observation farther than this from every person is nobody's
 
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
@@ -103,6 +111,33 @@ def thin_images(frames: list[Any], period_s: float) -> list[Any]:
     return out
 
 
+def oracle_tracker(fused: list[Any], gt: LabelSet) -> Any:
+    """A tracker for :func:`track_all` that assigns the observations by ground truth (``--oracle``)."""
+    from scipy.optimize import linear_sum_assignment
+
+    by_frame = {f.frame: f for f in gt.frames}
+    people = []  # per fused frame: ground-truth ids and positions in the tracking frame
+    for fr in fused:
+        f = by_frame.get(fr.index)
+        ids = [p.id for p in f.people] if f is not None else []
+        xy = np.array([[p.x, p.y] for p in f.people]).reshape(-1, 2) if f is not None else np.zeros((0, 2))
+        people.append((ids, fr.world_pose.apply(xy) if len(xy) else xy))
+
+    def track(observations: list[Any], *, config: Any) -> Any:
+        hits: dict[int, list[tuple[int, int]]] = {}
+        for i, (o, (ids, xy)) in enumerate(zip(observations, people, strict=True)):
+            rows = np.arange(len(o.xy)) if o.alt_of is None else np.flatnonzero(o.alt_of < 0)
+            if not len(rows) or not ids:
+                continue
+            d = np.hypot(*(o.xy[rows][:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+            for r, c in zip(*linear_sum_assignment(d), strict=True):
+                if d[r, c] < ORACLE_GATE_M:
+                    hits.setdefault(ids[c], []).append((i, int(rows[r])))
+        return tracks_from_hits(observations, hits, config=config)
+
+    return track
+
+
 ENCOUNTER_M = 0.8  # a switch with another person this close is an encounter's
 GAP_FRAMES = 10  # a switch this many frames after the person's last match is a re-identification's
 
@@ -158,6 +193,9 @@ def main() -> None:
     ap.add_argument(
         "--laser-only", action="store_true", help="without the image detections, as --sources laser"
     )
+    ap.add_argument(
+        "--oracle", action="store_true", help="associate the observations by ground truth (an upper bound)"
+    )
     args = ap.parse_args()
     options = LabelOptions()
     total: Counter[str] = Counter()
@@ -179,7 +217,8 @@ def main() -> None:
         t = time.perf_counter()
         fused = fuse_all(frames, cam, run_options)
         t_fuse = time.perf_counter() - t
-        labels, _ = track_all(frames, fused, run_options, has_camera=cam is not None)
+        tracker = oracle_tracker(fused, gt) if args.oracle else None
+        labels, _ = track_all(frames, fused, run_options, has_camera=cam is not None, tracker=tracker)
         t_track = time.perf_counter() - t - t_fuse
         ev = evaluate(LabelSet.from_frames(labels), gt)
         m = ev.metrics()

@@ -322,9 +322,20 @@ def tracking_config(options: LabelOptions, *, has_camera: bool) -> Any:
 
 
 def track_all(
-    frames: list[PerceptionFrame], fused: list[FrameResult], options: LabelOptions, *, has_camera: bool
+    frames: list[PerceptionFrame],
+    fused: list[FrameResult],
+    options: LabelOptions,
+    *,
+    has_camera: bool,
+    tracker: Callable[..., Any] | None = None,
 ) -> tuple[list[LabelFrame], list[FrameResult]]:
     """Track in the odom frame and turn tracks into per-frame labels in the base frame.
+
+    Args:
+        tracker: called as ``tracker(observations, config=OfflineConfig)`` in place of
+            :func:`~studio.track.offline.track_offline`, with the per-frame
+            :class:`~studio.track.base.Observations` in the odom frame in the order of ``fused``; a tool
+            that compares association methods passes its own.
 
     Returns:
         The labels, and the per-frame observations the final tracking pass used (``fused`` plus the
@@ -332,6 +343,7 @@ def track_all(
     """
     from studio.track.offline import track_offline
 
+    track_offline = tracker or track_offline
     config = tracking_config(options, has_camera=has_camera)
     sigma = options.fusion.leg_sigma
     observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]

@@ -17,7 +17,7 @@ from studio.track.base import (
     track_sequence,
 )
 from studio.track.errors import TrackingError
-from studio.track.offline import OfflineConfig, track_offline
+from studio.track.offline import OfflineConfig, track_offline, tracks_from_hits
 from studio.track.stitch import StitchConfig
 from studio.track.thesis import ThesisTracker, ThesisTrackerConfig
 from studio.track.ukf import UkfTracker, UkfTrackerConfig
@@ -38,4 +38,5 @@ __all__ = [
     "UkfTrackerConfig",
     "track_offline",
     "track_sequence",
+    "tracks_from_hits",
 ]

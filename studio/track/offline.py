@@ -40,7 +40,7 @@ from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_link
 from studio.track.swaps import SwapConfig, repair_swaps
 from studio.track.ukf import UkfTracker, UkfTrackerConfig
 
-__all__ = ["OfflineConfig", "track_offline"]
+__all__ = ["OfflineConfig", "track_offline", "tracks_from_hits"]
 
 FloatArray = NDArray[np.float64]
 
@@ -325,8 +325,52 @@ def track_offline(
         )
     if cfg.swaps is not None and len(merged) > 1:
         merged, _ = repair_swaps(obs, merged, cfg.swaps)
+    return _output(obs, merged, cfg, cache)
+
+
+def tracks_from_hits(
+    observations: Sequence[Observations],
+    tracks: dict[int, list[tuple[int, int]]],
+    *,
+    config: OfflineConfig | None = None,
+) -> TrackResult:
+    """Stage 3 and 4 of :func:`track_offline` alone: smooth, interpolate, filter and number tracks whose
+    observations were assigned by someone else.
+
+    It serves tools that compare association methods on the same observations (``bench/replay_tracking.py
+    --oracle`` assigns them by ground truth).
+
+    Args:
+        observations: one :class:`Observations` per frame, as for :func:`track_offline`.
+        tracks: track id → its hits ``(frame index, row in that frame's observations)``, one per frame at
+            most; the lists are not modified.
+        config: options (only the smoothing, interpolation, shared-observation and minimum-track ones are
+            used).
+
+    Raises:
+        ValueError: a hit names a frame or row that does not exist, or two hits of one track share a frame.
+    """
+    cfg = config or OfflineConfig()
+    obs = list(observations)
+    out: dict[int, _Hits] = {}
+    for tid, h in tracks.items():
+        hits = sorted((int(i), int(r)) for i, r in h)
+        frames = [i for i, _ in hits]
+        if any(not (0 <= i < len(obs) and 0 <= r < len(obs[i].xy)) for i, r in hits):
+            raise ValueError(f"track {tid} has a hit outside the observations")
+        if len(set(frames)) != len(frames):
+            raise ValueError(f"track {tid} has two hits in one frame")
+        if hits:
+            out[tid] = hits
+    return _output(obs, out, cfg, {})
+
+
+def _output(
+    obs: list[Observations], tracks: dict[int, _Hits], cfg: OfflineConfig, cache: _Cache
+) -> TrackResult:
+    """Per-frame smoothed (and interpolated) points of the tracks long enough to keep, numbered."""
     kept = []
-    for tid, h in merged.items():
+    for tid, h in tracks.items():
         h.sort()
         duration_s = (obs[h[-1][0]].stamp_ns - obs[h[0][0]].stamp_ns) * 1e-9
         if len(h) >= cfg.min_track_hits and duration_s >= cfg.min_track_duration_s:

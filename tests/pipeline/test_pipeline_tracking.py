@@ -64,3 +64,25 @@ def test_tracking_windows_follow_the_image_period():
     # no camera, or the laser alone: the laser observes every frame, nothing to stretch
     assert tracking_config(LabelOptions(image_period_s=0.4), has_camera=False) == base
     assert tracking_config(LabelOptions(image_period_s=0.4, sources="laser"), has_camera=True) == base
+
+
+def test_a_given_tracker_replaces_the_offline_tracker():
+    """``track_all(tracker=...)``: the association a tool passes is what the labels show."""
+    from studio.track import tracks_from_hits
+
+    frames, fused = _camera_only_run(10.0, 0.2)
+    seen = []
+
+    def first_two_seconds(observations, *, config):
+        """The person's observations of the first 2 s only."""
+        seen.append(len(observations))
+        hits = {0: [(i, 0) for i, o in enumerate(observations) if len(o.xy) and i < 20]}
+        return tracks_from_hits(observations, hits, config=config)
+
+    options = LabelOptions(image_period_s=0.2)
+    labels, _ = track_all(frames, fused, options, has_camera=True, tracker=first_two_seconds)
+    assert seen
+    assert all(n == len(frames) for n in seen)
+    frames_with_people = [lf.frame for lf in labels if lf.people]
+    assert frames_with_people
+    assert max(frames_with_people) < 20

@@ -13,6 +13,7 @@ from studio.track import (
     UkfTracker,
     track_offline,
     track_sequence,
+    tracks_from_hits,
 )
 
 
@@ -213,3 +214,38 @@ def test_gaps_that_motion_bridges_get_positions_unless_crossed_fast(speed, bridg
     assert all(p.interpolated for p in in_gap)
     err = [abs(p.xy[0] - speed * 0.1 * k) for k, f in enumerate(res.frames) for p in f.points if 40 < k < 60]
     assert max(err) < 0.3
+
+
+def _hits_by_person(det) -> dict[int, list[tuple[int, int]]]:
+    """Each person's observations, as the ground truth assigns them (rows of each frame)."""
+    hits: dict[int, list[tuple[int, int]]] = {}
+    for i, (o, own) in enumerate(zip(det.observations, det.owner, strict=True)):
+        for r, d in enumerate(o.det_index):
+            person = own.get(int(d), -1)
+            if person >= 0:
+                hits.setdefault(person, []).append((i, r))
+    return hits
+
+
+def test_tracks_from_given_hits_are_smoothed_interpolated_and_numbered(sim, occluded):
+    scene, det = occluded
+    res = tracks_from_hits(det.observations, _hits_by_person(det))
+    switches, ids = sim.id_switches(res, det.owner)
+    assert switches == 0
+    assert sorted(len(v) for v in ids.values()) == [1, 1, 1]  # one track per person
+    assert sorted({p.track_id for f in res.frames for p in f.points}) == [0, 1, 2]
+    # person 0's 1.5 s occlusion is bridged by smoothed positions
+    assert any(p.interpolated for f in res.frames for p in f.points)
+    online = track_sequence(UkfTracker(), det.observations)
+    assert sim.rmse(res, det.owner, scene) < sim.rmse(online, det.owner, scene)
+
+
+def test_tracks_from_hits_rejects_hits_that_do_not_exist(occluded):
+    _scene, det = occluded
+    n = len(det.observations)
+    with pytest.raises(ValueError, match="outside"):
+        tracks_from_hits(det.observations, {0: [(n, 0)]})
+    with pytest.raises(ValueError, match="outside"):
+        tracks_from_hits(det.observations, {0: [(0, 99)]})
+    with pytest.raises(ValueError, match="two hits in one frame"):
+        tracks_from_hits(det.observations, {0: [(0, 0), (0, 0)]})
