@@ -39,7 +39,10 @@ track's prediction (with the 0.11 m leg σ and a track's own uncertainty, about 
 normalisation term is about −2), so a split wins where both legs fit their tracks and the pair's centre
 fits neither. The online tracker splits pairs only between people walking together
 (``UkfTrackerConfig.split_pair_max_relative_speed``); here, with both trajectories known, people passing
-each other are split too.
+each other are split too. ``studio label`` turns the split off on rigs with a camera
+(``EncounterConfig.split_legs``; :func:`studio.pipeline.label.tracking_config`): there it mostly fed a
+duplicate track, one person's two legs given to two tracks 0.15–0.2 m apart (session 21,
+``docs/results.md``), while people passing get a box each on the image frames.
 """
 
 from __future__ import annotations
@@ -83,6 +86,7 @@ class EncounterConfig:
         appearance_cap: colour differences count up to this, ΔE.
         appearance_views: described observations whose median colours are a track's colours before an
             encounter and its tail's after it.
+        split_legs: a laser leg pair may go one leg to each of two tracks (see the module docstring).
 
     ``pad_frames`` 10 and ``margin`` 5 (session 16; before 5 and 10): on 16 simulated ``moving`` recordings
     (seeds 1–8 of simulator versions 2 and 3) identity switches 128 → 112, F1 and MOTA up 0.001–0.002, IDF1
@@ -98,6 +102,7 @@ class EncounterConfig:
     appearance_weight: float = 0.2
     appearance_cap: float = 20.0
     appearance_views: int = 5
+    split_legs: bool = True
 
     def __post_init__(self) -> None:
         if self.close_m <= 0 or self.beam < 1 or min(self.pad_frames, self.tail_frames, self.margin) < 0:
@@ -195,14 +200,14 @@ def _beam(
     return float(nll[0]), choice[::-1]
 
 
-def _options(o: Observations, i: int, held: Sequence[Hit | None]) -> list[_Option]:
+def _options(o: Observations, i: int, held: Sequence[Hit | None], split_legs: bool = True) -> list[_Option]:
     """The ways to give frame ``i``'s observations held by the tracks (``held``, one entry per track) to
-    distinct tracks; where fewer were held than there are tracks, also a laser leg pair's two legs to
-    two tracks."""
+    distinct tracks; where fewer were held than there are tracks (and ``split_legs``), also a laser leg
+    pair's two legs to two tracks."""
     k = len(held)
     hits = [h for h in held if h is not None]
     sets = [hits]
-    if o.alt_of is not None and len(hits) < k:
+    if split_legs and o.alt_of is not None and len(hits) < k:
         for n, h in enumerate(hits):
             legs = np.flatnonzero(o.alt_of == h[1])
             if len(legs) == 2:
@@ -291,7 +296,7 @@ def _redecide(
     P0 = np.stack([P[f0 - 1 - h[0][0]] for (_, P, _), h in zip(states, hs, strict=True)])
     frames = range(f0, last + 1)
     current = {i: [tuple(v)] for i, v in held.items()}
-    every = {i: _options(obs[i], i, v) for i, v in held.items()}
+    every = {i: _options(obs[i], i, v, cfg.split_legs) for i, v in held.items()}
     now = _beam(obs, x0, P0, tail(identity) | current, frames, accel_sigma, 1, app)[0] + leaving(identity)
     best, choice, best_order = np.inf, [], identity
     for order in orders:

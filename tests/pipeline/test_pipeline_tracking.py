@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -56,7 +58,9 @@ def test_camera_only_person_is_tracked_whatever_the_frame_rate(fps, period):
 def test_tracking_windows_follow_the_image_period():
     base = LabelOptions().tracking
     at = {p: tracking_config(LabelOptions(image_period_s=p), has_camera=True) for p in (0.0, 0.2, 0.4)}
-    assert at[0.0] == base
+    # with a camera, leg pairs are not split in the encounter re-decision, whatever the period
+    assert at[0.0] == replace(base, encounters=replace(base.encounters, split_legs=False))
+    assert not at[0.2].encounters.split_legs
     assert at[0.2].tracker.confirm_window_s == pytest.approx(0.45)
     assert at[0.4].tracker.confirm_window_s == pytest.approx(0.85)
     assert at[0.4].tracker.tentative_max_coast_s == pytest.approx(0.6)
@@ -64,6 +68,7 @@ def test_tracking_windows_follow_the_image_period():
     # no camera, or the laser alone: the laser observes every frame, nothing to stretch
     assert tracking_config(LabelOptions(image_period_s=0.4), has_camera=False) == base
     assert tracking_config(LabelOptions(image_period_s=0.4, sources="laser"), has_camera=True) == base
+    assert base.encounters.split_legs  # the laser alone splits them
 
 
 def test_a_given_tracker_replaces_the_offline_tracker():

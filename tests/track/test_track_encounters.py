@@ -189,6 +189,18 @@ def test_a_leg_pair_of_two_passing_people_is_split_between_them():
         assert obs[i].xy[p][1] > 0 > obs[i].xy[q][1]  # P (y = +0.2) got its own leg, Q (y = -0.2) its own
 
 
+def test_leg_pairs_stay_whole_when_splitting_is_off():
+    """The passing people of the test above, with ``split_legs=False`` (``studio label`` on a rig with a
+    camera): no track is given a single leg."""
+    merged = range(28, 33)
+    obs = _with_pairs(_passing(), merged, lambda xy: xy + np.array([[0.0, -0.08], [0.0, 0.08]]))
+    tracks = {4: [(i, 0) for i in range(60)], 8: [(i, 1) for i in range(60) if i not in merged]}
+    fixed, _ = _run(obs, tracks, split_legs=False)
+    for i in merged:
+        held = [r for t in (4, 8) for f, r in fixed[t] if f == i]
+        assert held == [0]  # the pair, to one track
+
+
 def test_one_persons_leg_pair_is_not_split_with_a_neighbour():
     """P's own two legs mid-stride, paired, while Q passing 0.4 m away went unseen: P keeps its pair."""
     merged = range(28, 33)
