@@ -355,15 +355,15 @@ def track_all(
     """
     from studio.track.offline import track_offline
 
-    track_offline = tracker or track_offline
+    run_tracker = tracker or track_offline
     config = tracking_config(options, has_camera=has_camera)
     sigma = options.fusion.leg_sigma
     observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
-    result = track_offline(observations, config=config)
+    result = run_tracker(observations, config=config)
     if options.recover_radius > 0 and options.sources != "camera":
         fused = recover_missed(fused, result, options)
         observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
-        result = track_offline(observations, config=config)
+        result = run_tracker(observations, config=config)
     # camera confirmation and minimum duration, per track
     camera_hits: dict[int, list[int]] = {}
     span: dict[int, list[int]] = {}

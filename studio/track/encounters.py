@@ -200,7 +200,7 @@ def _beam(
     return float(nll[0]), choice[::-1]
 
 
-def _options(o: Observations, i: int, held: Sequence[Hit | None], split_legs: bool = True) -> list[_Option]:
+def _options(o: Observations, i: int, held: Sequence[Hit | None], split_legs: bool) -> list[_Option]:
     """The ways to give frame ``i``'s observations held by the tracks (``held``, one entry per track) to
     distinct tracks; where fewer were held than there are tracks (and ``split_legs``), also a laser leg
     pair's two legs to two tracks."""
