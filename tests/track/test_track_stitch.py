@@ -15,11 +15,11 @@ RED = np.array([50.0, 60.0, 40.0, 30.0, 0.0, 0.0], np.float32)  # L*a*b* of a re
 BLUE = np.array([50.0, 10.0, -50.0, 30.0, 0.0, 0.0], np.float32)
 
 
-def tl(tid, start_s, end_s, p_start, p_end, v=(1.0, 0.0), app=None, views=10) -> Tracklet:
+def tl(tid, start_s, end_s, p_start, p_end, v=(1.0, 0.0), app=None, views=10, hits=0) -> Tracklet:
     xs = np.array([*p_start, *v], float)
     xe = np.array([*p_end, *v], float)
     n = 0 if app is None else views
-    return Tracklet(tid, round(start_s * S), round(end_s * S), xs, P, xe, P, app, app, app, n)
+    return Tracklet(tid, round(start_s * S), round(end_s * S), xs, P, xe, P, app, app, app, n, hits)
 
 
 # A walks along +x at 1 m/s and ends at x = 0, t = 10 s; candidates B start after a gap.
@@ -94,6 +94,27 @@ def test_re_identification_after_a_long_absence():
     # too far to have walked there in the gap
     far = tl(4, 30.0, 40.0, (60.0, 0.0), (70.0, 0.0), app=RED)
     assert stitch_links([a, far]) == []
+
+
+def test_someone_hidden_for_long_is_found_again_near_where_they_were_lost():
+    # no colours (a laser-only rig): A stands at the origin until t = 10 s, is hidden for 8 s, and a long
+    # tracklet starts 0.8 m away; the limit there is lost_distance + lost_speed * 8 = 3 m
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (0.0, 0.0), (0.0, 0.0), v=still, hits=100)
+    back = tl(1, 18.0, 30.0, (0.8, 0.0), (3.0, 0.0), v=still, hits=120)
+    assert stitch_links([a, back]) == [(0, 1)]
+    # the nearer of two who appear
+    farther = tl(2, 18.0, 30.0, (2.0, 1.0), (3.0, 1.0), v=still, hits=120)
+    assert stitch_links([a, farther, back]) == [(0, 1)]
+    # not a short tracklet (clutter), not too far, not after too long, not when switched off
+    assert stitch_links([a, replace(back, n_hits=10)]) == []
+    assert stitch_links([a, tl(3, 18.0, 30.0, (3.5, 0.0), (3.0, 0.0), v=still, hits=120)]) == []
+    assert stitch_links([a, back], config=StitchConfig(lost_max_gap_s=5.0)) == []
+    # colours on both sides decide by themselves: different people are not joined
+    red = replace(a, app=RED, app_start=RED, app_end=RED, n_app=10)
+    blue = replace(back, app=BLUE, app_start=BLUE, app_end=BLUE, n_app=10)
+    assert stitch_links([red, blue]) == []
+    assert stitch_links([red, back]) == [(0, 1)]
 
 
 def test_two_people_are_not_joined_through_a_laser_tracklet():
