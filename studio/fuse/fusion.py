@@ -6,8 +6,11 @@ homographies). Each person box gets a range estimate from the image alone — th
 are associated one-to-one with laser detections (Hungarian) on column and range consistency. A box that
 finds no detection takes the scan cluster inside its azimuth span closest to the robot (the thesis's
 fallback, here also range-gated); failing that, an image-only position from its range cue with a large
-covariance. There is never a fixed fallback position. Laser detections no box confirms are kept with source
-``laser``; whether they survive is decided at the track level.
+covariance. A laser detection on never-moving structure may be taken by a box (someone who stood still
+for the whole recording looks static to the laser), but not from behind moving scan points in the box's
+columns: that is the wall seen between the legs of a person the laser detector missed. There is never a
+fixed fallback position. Laser detections no box confirms are kept with source ``laser``; whether they
+survive is decided at the track level.
 
 All positions are in the robot base frame, metres; ranges are horizontal distances from the camera centre.
 """
@@ -180,6 +183,7 @@ def fuse_frame(
     used_laser = np.zeros(n_l, dtype=bool)
     absorbed = np.zeros(n_l, dtype=bool)
     beside = np.zeros(n_l, dtype=bool)  # inside a box that took someone else at their range
+    static = np.zeros(n_l, bool) if laser_static is None else np.asarray(laser_static, bool).reshape(n_l)
     if n_b and image is not None:
         if camera is None:
             raise ValueError("fuse_frame: image detections need the camera")
@@ -188,6 +192,8 @@ def fuse_frame(
         boxes = image.boxes
         bw = np.maximum(boxes[:, 2] - boxes[:, 0], 1.0)
         cost = np.full((n_b, n_l), _BIG)
+        pts = None if scan_points is None else np.asarray(scan_points, dtype=np.float64).reshape(-1, 3)
+        u_p, r_p = points_columns(camera, pts) if pts is not None and len(pts) else (np.zeros(0), np.zeros(0))
         if n_l and laser is not None:
             sig_l = cfg.laser_sigmas(laser.kind)
             z = np.broadcast_to(np.asarray(laser_z, dtype=np.float64), (n_l,))
@@ -204,6 +210,13 @@ def fuse_frame(
                 else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
                     ok = inside & (r_l <= cfg.max_range)
                     c = off**2 + r_l / cfg.max_range
+                if cfg.static_behind > 0 and len(u_p) and (ok & static).any():
+                    # a static detection behind moving scan points in the box: the wall between their legs
+                    half = cfg.cluster_core_frac * bw[i] / 2.0
+                    core = np.abs(_offset_in_box(u_p, boxes[i, 0], boxes[i, 2], W)) <= half
+                    for j in np.flatnonzero(ok & static):
+                        nearer = np.count_nonzero(core & (r_p < r_l[j] - cfg.static_behind))
+                        ok[j] = nearer < cfg.cluster_min_points
                 cost[i, ok] = c[ok]
             rows, cols = linear_sum_assignment(cost)
             for i, j in zip(rows, cols, strict=True):
@@ -230,8 +243,6 @@ def fuse_frame(
                     )
                 )
         matched_boxes = {int(p.box_index[0]) for p in parts}
-        pts = None if scan_points is None else np.asarray(scan_points, dtype=np.float64).reshape(-1, 3)
-        u_p, r_p = points_columns(camera, pts) if pts is not None and len(pts) else (np.zeros(0), np.zeros(0))
         cam_xy = _cam_xy(camera)
         for i in range(n_b):
             if i in matched_boxes:
@@ -284,7 +295,6 @@ def fuse_frame(
             if obs is not None:
                 parts.append(obs)
     if n_l and laser is not None:
-        static = np.zeros(n_l, bool) if laser_static is None else np.asarray(laser_static, bool).reshape(n_l)
         rest = np.flatnonzero(~used_laser & ~static & ~absorbed)
         if len(rest):
             parts.append(

@@ -153,6 +153,30 @@ def test_static_laser_detections_only_count_when_a_box_vouches_for_them() -> Non
     np.testing.assert_allclose(no_box.xy[0], [1.0, -3.0])
 
 
+def test_a_box_does_not_take_the_wall_seen_between_the_legs_of_someone_the_laser_missed() -> None:
+    # the laser detector missed a person at (4, 1) (their legs are in the scan) and found a piece of wall
+    # 1.3 m behind them on the same bearing, seen between their legs; the box's range cue (feet hidden:
+    # torso size) is too loose to choose: the box takes the nearer scan cluster, the person
+    box = dets(person(4.0, 1.0, feet=False))
+    wall = laser((5.2, 1.3))
+    obs = fuse_frame(box, wall, camera=CAM, scan_points=legs(4.0, 1.0), laser_static=np.array([True]))
+    assert obs.source == ("fused",)
+    assert obs.how[0] == "scan-cluster"
+    assert np.hypot(*(obs.xy[0] - [4.0, 1.0])) < 0.15
+    # without the check, or without the nearer points, the box takes the static detection
+    off = fuse_frame(
+        box,
+        wall,
+        camera=CAM,
+        scan_points=legs(4.0, 1.0),
+        laser_static=np.array([True]),
+        config=FusionConfig(static_behind=0.0),
+    )
+    np.testing.assert_allclose(off.xy[off.source.index("fused")], [5.2, 1.3])
+    alone = fuse_frame(box, wall, camera=CAM, scan_points=np.zeros((0, 3)), laser_static=np.array([True]))
+    np.testing.assert_allclose(alone.xy[alone.source.index("fused")], [5.2, 1.3])
+
+
 def test_no_fixed_fallback_position() -> None:
     # a box whose foot row is above the horizon (nonsense) and no laser: nothing is invented
     bad = ImageDetections(np.array([[100.0, 10.0, 150.0, 60.0]]), np.array([0.9]), None, W, H)
