@@ -205,7 +205,6 @@ def _tracklet(
         median_appearance(desc[-n:]) if len(desc) else None,
         median_appearance(desc) if len(desc) else None,
         len(desc),
-        len(hits),
         run.stamps_ns[at],
         run.x[at],
         run.P[at],

@@ -20,8 +20,8 @@ least ``min_views`` observations, their whole-tracklet colours differ by at most
 ``1 + d_app / reid_max_appearance``: a re-identification never beats a good motion bridge.
 
 Without colours on both sides (a laser-only rig, someone the camera did not describe), a long gap, up to
-``lost_max_gap_s``, is still bridged when both tracklets are long (``lost_min_hits`` observations: a person,
-not clutter) and the later one starts near where the earlier one was lost (within
+``lost_max_gap_s``, is still bridged when both tracklets are long (``lost_min_duration_s``: a person, not
+clutter) and the later one starts near where the earlier one was lost (within
 ``lost_distance + lost_speed · gap``): most people who vanish from a robot's sensors for a few seconds are
 hidden, not gone. Its cost, ``lost_cost`` plus up to 0.5 for the distance, is above any colour or motion link,
 so it only takes what nothing better wants. A wrong guess costs little: without it the person comes back
@@ -61,7 +61,6 @@ class Tracklet:
         app_start, app_end: (6,) appearance descriptors near its start / end, or None.
         app: (6,) descriptor of the whole tracklet, or None.
         n_app: how many observations ``app`` comes from.
-        n_hits: how many observations it has (0: unknown).
         hit_ns, x_hit, P_hit: (K,) stamps of its observations and (K, 4) / (K, 4, 4) its forward-filtered
             states there (each from the observations up to it), or None; with them a tracklet may be
             continued by one that starts before it ends (its tail is then given up).
@@ -78,7 +77,6 @@ class Tracklet:
     app_end: NDArray[np.float32] | None = None
     app: NDArray[np.float32] | None = None
     n_app: int = 0
-    n_hits: int = 0
     hit_ns: NDArray[np.int64] | None = None
     x_hit: FloatArray | None = None
     P_hit: FloatArray | None = None
@@ -121,7 +119,7 @@ class StitchConfig:
             re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
         lost_max_gap_s: longest gap bridged without colours (not both sides described) and without a motion
             bridge, seconds (0: never).
-        lost_min_hits: both tracklets of such a link have at least this many observations.
+        lost_min_duration_s: both tracklets of such a link span at least this long, seconds.
         lost_distance, lost_speed: the later tracklet starts within ``lost_distance + lost_speed · gap`` of
             where the earlier one ended (m, m/s).
         lost_cost: cost of such a link at distance 0 (it rises by 0.5 at the limit; ``2 · miss_cost`` is
@@ -148,7 +146,7 @@ class StitchConfig:
     fill_distance: float = 1.0
     fill_speed: float = 0.5
     lost_max_gap_s: float = 20.0
-    lost_min_hits: int = 20
+    lost_min_duration_s: float = 2.0
     lost_distance: float = 1.0
     lost_speed: float = 0.25
     lost_cost: float = 2.0
@@ -209,7 +207,8 @@ def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float
 
 def _lost_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float | None:
     """Cost of B continuing A across a long gap without colours on both sides, or None."""
-    if gap > cfg.lost_max_gap_s or min(a.n_hits, b.n_hits) < max(1, cfg.lost_min_hits):
+    shortest_s = min(a.end_ns - a.start_ns, b.end_ns - b.start_ns) * 1e-9
+    if gap > cfg.lost_max_gap_s or shortest_s < cfg.lost_min_duration_s:
         return None
     limit = cfg.lost_distance + cfg.lost_speed * gap
     d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
