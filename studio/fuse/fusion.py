@@ -183,7 +183,9 @@ def fuse_frame(
     used_laser = np.zeros(n_l, dtype=bool)
     absorbed = np.zeros(n_l, dtype=bool)
     beside = np.zeros(n_l, dtype=bool)  # inside a box that took someone else at their range
-    static = np.zeros(n_l, bool) if laser_static is None else np.asarray(laser_static, bool).reshape(n_l)
+    static = np.zeros(n_l, bool)  # on never-moving structure
+    if laser_static is not None and n_l:
+        static = np.asarray(laser_static, bool).reshape(n_l)
     if n_b and image is not None:
         if camera is None:
             raise ValueError("fuse_frame: image detections need the camera")
