@@ -25,7 +25,8 @@ __all__ = ["detection_record", "read_panorama", "run"]
 
 
 def read_panorama(path: str | Path) -> np.ndarray:
-    """Decode an image file as BGR uint8 ``(H, W, 3)``; StudioError when missing or unreadable."""
+    """Decode an image file as BGR uint8 ``(H, W, 3)``; StudioError when missing, unreadable or not an
+    equirectangular panorama (twice as wide as high)."""
     p = Path(path)
     if not p.is_file():
         raise StudioError(f"image not found: {p}")
@@ -33,6 +34,9 @@ def read_panorama(path: str | Path) -> np.ndarray:
     img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if img is None:
         raise StudioError(f"cannot decode image: {p}")
+    h, w = img.shape[:2]
+    if w != 2 * h:
+        raise StudioError(f"{p} is {w}×{h} px; an equirectangular panorama is twice as wide as high (2:1)")
     return np.ascontiguousarray(img)
 
 

@@ -329,7 +329,8 @@ def iter_frames(
         window_s: longest wait (log time, s) for the scans of a frame before it is resolved.
 
     Raises:
-        RecordingError: a topic of the rig is missing from the recording or has the wrong type.
+        RecordingError: a topic of the rig is missing from the recording or has the wrong type; a camera
+            image is not an equirectangular panorama (2:1) or its size changes within the recording.
         TfError: the rig needs a transform (laser pose, odometry frame) the TF tree cannot give.
     """
     rep = report if report is not None else SyncReport()
@@ -375,6 +376,7 @@ def iter_frames(
     pending: deque[_Pending] = deque()
     last_anchor: int | None = None
     n_out = 0
+    pano_size: tuple[int, int] | None = None  # (width, height) of the first panorama
 
     def offer(p: _Pending, k: int, scan: LaserScan) -> None:
         dt = abs(scan.stamp_ns - p.stamp)
@@ -401,7 +403,7 @@ def iter_frames(
             return None
 
     def emit(p: _Pending) -> Frame | None:
-        nonlocal n_out
+        nonlocal n_out, pano_size
         T_f = motion.at(p.stamp)
         if T_f is None:
             rep.dropped[DROP_NO_ODOMETRY] += 1
@@ -413,6 +415,19 @@ def iter_frames(
             except RecordingError:
                 rep.dropped[DROP_BAD_IMAGE] += 1
                 return None
+            h, w = pano.image.shape[:2]
+            if w != 2 * h:
+                raise RecordingError(
+                    f"camera topic {cam_topic}: the image at {pano.stamp_ns * 1e-9:.3f} s is {w}×{h} px; "
+                    "an equirectangular panorama is twice as wide as high (2:1): is this the 360° camera?"
+                )
+            if pano_size is None:
+                pano_size = (w, h)
+            elif (w, h) != pano_size:
+                raise RecordingError(
+                    f"camera topic {cam_topic}: the image at {pano.stamp_ns * 1e-9:.3f} s is {w}×{h} px, "
+                    f"the first one was {pano_size[0]}×{pano_size[1]} px; the panorama size must not change"
+                )
         T_f_inv = T_f.inverse()
         scans = []
         for k, cfg in enumerate(rig.lasers):

@@ -169,7 +169,8 @@ def test_odometry_and_tf_shapes() -> None:
     assert [(p, c, s) for p, c, s, _ in out] == [("a", "b", 9), ("a", "d", 3)]
 
 
-def _write_json_mcap(path: Path) -> None:
+def _write_json_mcap(path: Path, sizes: list[tuple[int, int]] | None = None) -> None:
+    """Five frames of a laser, a camera (``sizes``: each image's width × height, 16 × 8 by default) and TF."""
     from mcap.writer import Writer
 
     with path.open("wb") as f:
@@ -181,9 +182,10 @@ def _write_json_mcap(path: Path) -> None:
             sid = w.register_schema(name=schema, encoding="jsonschema", data=b"{}")
             enc = "protobuf" if topic == "/other" else "json"
             ids[topic] = w.register_channel(topic=topic, message_encoding=enc, schema_id=sid)
-        ok, jpg = cv2.imencode(".jpg", np.full((8, 16, 3), 100, np.uint8))
-        assert ok
         for k in range(5):
+            w_px, h_px = sizes[k] if sizes else (16, 8)
+            ok, jpg = cv2.imencode(".jpg", np.full((h_px, w_px, 3), 100, np.uint8))
+            assert ok
             t = T0 + k * 100_000_000
             ts = {"sec": t // 10**9, "nsec": t % 10**9}
             scan = {"timestamp": ts, "frame_id": "laser", "start_angle": -1.0, "end_angle": 1.0,
@@ -224,6 +226,47 @@ def test_plain_json_mcap(tmp_path: Path) -> None:
     assert len(s.scan) == 4
     assert s.scan.angle_increment == pytest.approx(2 / 3)
     np.testing.assert_allclose(s.sensor_pose.t, (0.2, 0.0, 0.1))
+
+
+@pytest.mark.parametrize(
+    ("sizes", "match"),
+    [
+        ([(16, 9)] * 5, r"16×9 px; an equirectangular panorama is twice as wide as high \(2:1\)"),
+        ([(16, 8)] * 3 + [(32, 16)] * 2, "32×16 px, the first one was 16×8 px"),
+    ],
+    ids=["not 2:1", "size changes"],
+)
+def test_panoramas_that_are_not_2_to_1_or_change_size_are_an_error(
+    tmp_path: Path, sizes: list[tuple[int, int]], match: str
+) -> None:
+    p = tmp_path / "bad_size.mcap"
+    _write_json_mcap(p, sizes)
+    rig = parse_rig({"base_frame": "base", "camera": {"topic": "/cam"}, "lasers": [{"topic": "/scan"}]})
+    with open_recording(p) as rec, pytest.raises(RecordingError, match=match):
+        list(iter_frames(rec, rig))
+
+
+def test_studio_label_refuses_a_camera_topic_that_is_not_a_panorama(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    p = tmp_path / "not_pano.mcap"
+    _write_json_mcap(p, [(16, 9)] * 5)
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: base\ncamera:\n  topic: /cam\nlasers:\n  - topic: /scan\n")
+    cmd = ["label", str(p), "--rig", str(rig), "--out", str(tmp_path / "run")]
+    res = subprocess.run(
+        [sys.executable, "-m", "studio.cli", *cmd],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert res.returncode == 2
+    assert res.stderr.count("\n") == 1
+    assert "2:1" in res.stderr
+    assert "Traceback" not in res.stderr
+    assert not (tmp_path / "run").exists()
 
 
 def test_mcap_without_summary(tmp_path: Path) -> None:

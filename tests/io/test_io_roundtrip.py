@@ -199,7 +199,7 @@ def test_undecodable_image_is_dropped(tmp_path: Path) -> None:
     with RecordingWriter(p) as w:
         w.write_compressed_image("/cam", T0, "camera", jpg.tobytes())
         w.write_compressed_image("/cam", T0 + 100_000_000, "camera", b"not a jpeg at all")
-        w.write_image("/cam_raw", T0, "camera", np.full((4, 6, 3), 7, np.uint8))
+        w.write_image("/cam_raw", T0, "camera", np.full((4, 8, 3), 7, np.uint8))
     report = SyncReport()
     with open_recording(p) as rec:
         frames = list(

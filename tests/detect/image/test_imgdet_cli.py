@@ -62,6 +62,7 @@ def test_detect_image_default_movenet(tmp_path):
             "YOLO",
             "cannot decode",
         ),
+        (lambda p: _pano(p / "wide.png", 640, 360), None, "640×360 px; an equirectangular panorama is"),
         (lambda p: _pano(p / "ok.png"), "nope", "unknown image detector 'nope'"),
         (lambda p: _pano(p / "ok.png"), "missing.onnx", "model file not found"),
     ],
