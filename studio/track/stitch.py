@@ -126,8 +126,8 @@ class StitchConfig:
             the most any link may cost).
 
     The ``lost_*`` defaults (session 22, ``docs/results.md``): laser-only replays of the simulated
-    ``moving`` seeds 1–8 from 93 to 72 identity switches, seeds 9–12 from 52 to 40, F1 unchanged; on
-    camera rigs the same switches.
+    ``moving`` seeds 1–8 from 93 to 72 identity switches, seeds 9–12 from 52 to 40, F1 unchanged; with the
+    camera, seeds 1–8 the same switches.
     """
 
     max_gap_s: float = 3.0
