@@ -8,7 +8,8 @@
    the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered
    and RTS-smoothed on their own and then **stitched** across gaps (:mod:`studio.track.stitch`: motion +
    appearance, solved globally); a continuation takes the id of the tracklet it continues, and one that
-   started before the tracklet it continues ended (its tail had left the person) replaces that tail.
+   started before the tracklet it continues ended (its tail had left the person), or that continues it
+   from an observation shortly before its last one, replaces that tail.
    Where two stitched tracks come close, the detections they held there are distributed between them
    again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
@@ -36,7 +37,7 @@ from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
-from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
+from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, stitch_links
 from studio.track.swaps import SwapConfig, repair_swaps
 from studio.track.ukf import UkfTracker, UkfTrackerConfig
 
@@ -303,17 +304,22 @@ def track_offline(
     if cfg.swaps is not None:
         tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
     cache: _Cache = {}
+    cuts: dict[int, int] = {}
     if cfg.stitch is not None and len(tracklets) > 1:
         summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
-        root = chain_links(list(tracklets), stitch_links(summaries, config=cfg.stitch))
+        links = stitch_links(summaries, config=cfg.stitch)
+        root = chain_links(list(tracklets), links)
+        cuts = link_cuts(summaries, links, config=cfg.stitch)
     else:
         root = {tid: tid for tid in tracklets}
     merged: dict[int, _Hits] = {}
     # chain members in order of their start: one that starts before the previous one ended takes over
-    # from there (the previous one's tail is given up)
+    # from there, or from where stitching cut the previous one (the previous one's tail is given up)
     for tid, h in sorted(tracklets.items(), key=lambda kv: kv[1][0][0]):
         chain = merged.setdefault(root[tid], [])
-        chain[:] = [x for x in chain if x[0] < h[0][0]] + h
+        cut = cuts.get(tid)
+        kept = [x for x in chain if x[0] < h[0][0] and (cut is None or obs[x[0]].stamp_ns <= cut)]
+        chain[:] = kept + h
     if cfg.encounters is not None and len(merged) > 1:
 
         def estimate(h: _Hits) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from studio.track.appearance import appearance_distance
 from studio.track.gnn import gnn_assign
 
-__all__ = ["StitchConfig", "Tracklet", "chain_links", "stitch_links"]
+__all__ = ["StitchConfig", "Tracklet", "chain_links", "link_cuts", "stitch_links"]
 
 FloatArray = NDArray[np.float64]
 
@@ -115,6 +115,11 @@ class StitchConfig:
             ends (A's tail left its person — pulled onto clutter or a neighbour — and B took the person
             over): the link is judged from A's state at its last observation before B starts, costs
             ``overlap_cost`` more, and A's observations from B's start on are given up.
+        tail_back_s: B may also continue A from one of A's observations up to this long before B starts
+            (A's last few observations were already a neighbour's when B picked the person up), at
+            ``overlap_cost`` more; A's later observations are then given up (:func:`link_cuts`). 0: never.
+            Session 22 (``docs/results.md``): simulated ``moving`` seeds 1–12 with the camera 65 → 59
+            identity switches, laser only 112 → 97.
         fill_distance, fill_speed: a chain of undescribed tracklets goes into the gap of a
             re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
         lost_max_gap_s: longest gap bridged without colours (not both sides described) and without a motion
@@ -150,6 +155,7 @@ class StitchConfig:
     lost_distance: float = 1.0
     lost_speed: float = 0.25
     lost_cost: float = 2.0
+    tail_back_s: float = 0.5
 
     def __post_init__(self) -> None:
         if self.max_gap_s <= 0 or self.max_appearance <= 0 or self.reid_max_appearance <= 0:
@@ -159,6 +165,33 @@ class StitchConfig:
 
 
 def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
+    link = _link(a, b, cfg)
+    return None if link is None else link[0]
+
+
+def _link(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> tuple[float, int | None] | None:
+    """The cost of B continuing A, and the stamp of A's last observation kept when B continues it from an
+    earlier one than its last before B starts (else None); None when B may not continue A."""
+    c = _plain_cost(a, b, cfg)
+    best: tuple[float, int | None] | None = None if c is None else (c, None)
+    if cfg.tail_back_s <= 0 or a.hit_ns is None or a.x_hit is None or a.P_hit is None:
+        return best
+    gap = (b.start_ns - a.end_ns) * 1e-9
+    if b.start_ns <= a.start_ns or not -cfg.max_overlap_s <= gap <= cfg.max_gap_s:
+        return best
+    # A's last observations before B starts may have left the person for a neighbour (B took the person
+    # over from there): B may continue A from one of A's observations up to tail_back_s before B starts
+    k = int(np.searchsorted(a.hit_ns, b.start_ns)) - 2  # the last one is the plain (or overlap) case
+    while k >= 1 and (b.start_ns - a.hit_ns[k]) * 1e-9 <= cfg.tail_back_s:
+        head = replace(a, end_ns=int(a.hit_ns[k]), x_end=a.x_hit[k], P_end=a.P_hit[k])
+        ch = _plain_cost(head, b, cfg)
+        if ch is not None and (best is None or ch + cfg.overlap_cost < best[0]):
+            best = (ch + cfg.overlap_cost, int(a.hit_ns[k]))
+        k -= 1
+    return best
+
+
+def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
     gap = (b.start_ns - a.end_ns) * 1e-9
     if gap <= 0.0:
         if -gap > cfg.max_overlap_s or b.start_ns <= a.start_ns:
@@ -166,7 +199,7 @@ def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
         head = a.cut_before(b.start_ns)
         if head is None:
             return None
-        c = _pair_cost(head, b, cfg)
+        c = _plain_cost(head, b, cfg)
         return None if c is None else c + cfg.overlap_cost
     if gap > cfg.max_gap_s:
         return _reid_cost(a, b, gap, cfg)
@@ -328,6 +361,21 @@ def _fill_gaps(
             out |= {(cur.track_id, head.track_id), (tail.track_id, best[1])}
             hosts[best] = tail
     return sorted(out)
+
+
+def link_cuts(
+    tracklets: list[Tracklet], links: list[tuple[int, int]], *, config: StitchConfig | None = None
+) -> dict[int, int]:
+    """For the links of :func:`stitch_links` in which B continues A from an observation before A's last one
+    before B starts (``tail_back_s``): B's id → the stamp of A's last observation to keep, ns."""
+    cfg = config or StitchConfig()
+    by_id = {t.track_id: t for t in tracklets}
+    out = {}
+    for a, b in links:
+        link = _link(by_id[a], by_id[b], cfg)
+        if link is not None and link[1] is not None:
+            out[b] = link[1]
+    return out
 
 
 def chain_links(ids: list[int], links: list[tuple[int, int]]) -> dict[int, int]:

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from studio.track.stitch import StitchConfig, Tracklet, chain_links, stitch_links
+from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, stitch_links
 
 S = 1_000_000_000
 P = np.diag([0.003, 0.003, 0.05, 0.05])  # ~5 cm, ~0.2 m/s
@@ -169,3 +169,21 @@ def test_a_tracklet_whose_tail_left_its_person_is_continued_by_the_one_that_took
     assert stitch_links([replace(a, hit_ns=None), b]) == []
     assert stitch_links([a, b], config=StitchConfig(max_overlap_s=1.0)) == []
     assert stitch_links([a, tl(2, 8.2, 15.0, (3.2, 2.5), (10.0, 2.5), app=RED)]) == []
+
+
+def test_a_tracklet_whose_last_observations_were_a_neighbours_is_continued_from_before_them():
+    # A walks along +x at 1 m/s; its last 0.3 s (from t = 7.7 s) are a neighbour's, who walks off along
+    # +y from (2.7, 0.4); B picks the person up at t = 8.1 s on A's path, after A's last observation
+    ts = np.arange(0.0, 8.01, 0.1)
+    path = np.column_stack([ts - 5.0, np.where(ts < 7.65, 0.0, 0.4 + 3.0 * (ts - 7.7))])
+    a = with_hits(tl(0, 0.0, 8.0, path[0], path[-1], v=(0.0, 3.0), app=RED), ts, path)
+    b = tl(1, 8.1, 15.0, (3.1, 0.0), (10.0, 0.0), app=RED)
+    links = stitch_links([a, b])
+    assert links == [(0, 1)]
+    # B goes on from A's last observation on the person (t = 7.6 s): the later ones are given up
+    assert link_cuts([a, b], links) == {1: round(7.6 * S)}
+    assert stitch_links([a, b], config=StitchConfig(tail_back_s=0.0)) == []
+    # a plain continuation gives nothing up
+    straight = np.column_stack([ts - 5.0, 0.0 * ts])
+    plain = with_hits(tl(0, 0.0, 8.0, (-5.0, 0.0), (3.0, 0.0), app=RED), ts, straight)
+    assert link_cuts([plain, b], stitch_links([plain, b])) == {}
