@@ -58,8 +58,14 @@ def test_camera_only_person_is_tracked_whatever_the_frame_rate(fps, period):
 def test_tracking_windows_follow_the_image_period():
     base = LabelOptions().tracking
     at = {p: tracking_config(LabelOptions(image_period_s=p), has_camera=True) for p in (0.0, 0.2, 0.4)}
-    # with a camera, leg pairs are not split in the encounter re-decision, whatever the period
-    assert at[0.0] == replace(base, encounters=replace(base.encounters, split_legs=False))
+    # with a camera, leg pairs are not split in the encounter re-decision and stitching's take-over looks
+    # back 1 s, whatever the period
+    assert at[0.0] == replace(
+        base,
+        encounters=replace(base.encounters, split_legs=False),
+        stitch=replace(base.stitch, tail_back_s=1.0),
+    )
+    assert base.stitch.tail_back_s == 0.5
     assert not at[0.2].encounters.split_legs
     assert at[0.2].tracker.confirm_window_s == pytest.approx(0.45)
     assert at[0.4].tracker.confirm_window_s == pytest.approx(0.85)
