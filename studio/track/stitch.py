@@ -174,20 +174,19 @@ def _link(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> tuple[float, int | Non
     earlier one than its last before B starts (else None); None when B may not continue A."""
     c = _plain_cost(a, b, cfg)
     best: tuple[float, int | None] | None = None if c is None else (c, None)
-    if cfg.tail_back_s <= 0 or a.hit_ns is None or a.x_hit is None or a.P_hit is None:
-        return best
     gap = (b.start_ns - a.end_ns) * 1e-9
-    if b.start_ns <= a.start_ns or not -cfg.max_overlap_s <= gap <= cfg.max_gap_s:
+    if cfg.tail_back_s <= 0 or b.start_ns <= a.start_ns or not -cfg.max_overlap_s <= gap <= cfg.max_gap_s:
         return best
     # A's last observations before B starts may have left the person for a neighbour (B took the person
     # over from there): B may continue A from one of A's observations up to tail_back_s before B starts
-    k = int(np.searchsorted(a.hit_ns, b.start_ns)) - 2  # the last one is the plain (or overlap) case
-    while k >= 1 and (b.start_ns - a.hit_ns[k]) * 1e-9 <= cfg.tail_back_s:
-        head = replace(a, end_ns=int(a.hit_ns[k]), x_end=a.x_hit[k], P_end=a.P_hit[k])
+    head = a.cut_before(b.start_ns)  # A at its last observation before B starts: the plain (overlap) case
+    while head is not None:
+        head = head.cut_before(head.end_ns)
+        if head is None or (b.start_ns - head.end_ns) * 1e-9 > cfg.tail_back_s:
+            break
         ch = _plain_cost(head, b, cfg)
         if ch is not None and (best is None or ch + cfg.overlap_cost < best[0]):
-            best = (ch + cfg.overlap_cost, int(a.hit_ns[k]))
-        k -= 1
+            best = (ch + cfg.overlap_cost, head.end_ns)
     return best
 
 
