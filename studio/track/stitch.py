@@ -316,7 +316,10 @@ def _fill_gaps(
     Pass 1 joins A → C across a long gap by colours; the pieces the camera could not describe in between
     (someone far away, standing where A ended) are then neither before nor after anything. A free chain of
     them goes between A and C when it lies inside the gap in time and each joint is at most
-    ``fill_distance + fill_speed · gap`` long; several go in one after another in time.
+    ``fill_distance + fill_speed · gap`` long; several go in one after another in time. Where it fits
+    several gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the
+    gates of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only
+    the one who left just before the piece starts continues into it), then where the joints are shortest.
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
@@ -332,11 +335,13 @@ def _fill_gaps(
             free.append((by_id[chain[0]], by_id[chain[-1]]))
     free.sort(key=lambda ht: ht[0].start_ns)
 
-    def joint(a: Tracklet, b: Tracklet) -> float | None:
-        """Length of the joint a → b, or None when it is not allowed."""
+    def joint(a: Tracklet, b: Tracklet) -> tuple[int, float] | None:
+        """(-1 for a motion link else 0, length) of the joint a → b, or None when it is not allowed."""
         gap = (b.start_ns - a.end_ns) * 1e-9
         d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
-        return d if gap > 0.0 and d <= cfg.fill_distance + cfg.fill_speed * gap else None
+        if gap <= 0.0 or d > cfg.fill_distance + cfg.fill_speed * gap:
+            return None
+        return -int(gap <= cfg.max_gap_s and _plain_cost(a, b, cfg) is not None), d
 
     # the gaps of re-identifications: host (a, c) -> the tracklet its chain reaches so far
     hosts = {
@@ -346,14 +351,14 @@ def _fill_gaps(
     }
     out = set(links)
     for head, tail in free:  # in time order; each goes into the gap whose ends it lies nearest
-        best, best_d = None, np.inf
+        best, best_key = None, (1, np.inf)
         for (a, c), cur in hosts.items():
             end = by_id[c]
             if head.start_ns <= cur.end_ns or tail.end_ns >= end.start_ns:
                 continue
-            d1, d2 = joint(cur, head), joint(tail, end)
-            if d1 is not None and d2 is not None and d1 + d2 < best_d:
-                best, best_d = (a, c), d1 + d2
+            j1, j2 = joint(cur, head), joint(tail, end)
+            if j1 is not None and j2 is not None and (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:
+                best, best_key = (a, c), key
         if best is not None:
             cur = hosts[best]
             out.discard((cur.track_id, best[1]))

@@ -148,6 +148,20 @@ def test_undescribed_pieces_go_into_the_gap_of_a_re_identification_nearest_them(
     assert stitch_links([a, away, c]) == [(0, 3)]
 
 
+def test_an_undescribed_piece_goes_into_the_gap_it_continues_by_motion():
+    # two people wait at one spot and are both re-identified much later; a colourless piece starts 2.4 s
+    # after red left, where red was walking to, but nearer where blue (gone for 6.4 s) stood: it continues red
+    red = tl(0, 0.0, 10.0, (4.0, 0.4), (2.0, 2.4), v=(-0.3, 0.3), app=RED)
+    red_back = tl(1, 50.0, 60.0, (1.2, 4.6), (1.2, 4.6), v=(0.0, 0.0), app=RED)
+    blue = tl(2, 0.0, 6.0, (1.1, 3.8), (1.1, 3.8), v=(0.0, 0.0), app=BLUE)
+    blue_back = tl(3, 45.0, 55.0, (1.3, 4.2), (1.3, 4.2), v=(0.0, 0.0), app=BLUE)
+    piece = tl(4, 12.4, 13.4, (1.2, 3.2), (1.0, 4.1), v=(-0.3, 0.3))
+    assert stitch_links([red, red_back, blue, blue_back, piece]) == [(0, 4), (2, 3), (4, 1)]
+    # without the motion link (red left 6 s before it), the piece goes where its joints are shortest
+    red_early = tl(0, 0.0, 6.4, (4.0, 0.4), (2.0, 2.4), v=(-0.3, 0.3), app=RED)
+    assert stitch_links([red_early, red_back, blue, blue_back, piece]) == [(0, 1), (2, 4), (4, 3)]
+
+
 def with_hits(t: Tracklet, stamps_s: np.ndarray, xy: np.ndarray) -> Tracklet:
     """``t`` with forward-filtered states at its observations (velocity from the path)."""
     v = np.gradient(xy, stamps_s, axis=0)
