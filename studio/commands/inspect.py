@@ -77,6 +77,8 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
             p = decode_panorama(msg, first.log_ns)
             fmt = f", {p.encoding}" if p.encoding else ""
             text = f"frame '{p.frame_id}', {p.width}×{p.height}{fmt}"
+            if p.width != 2 * p.height:
+                text += " (not 2:1: studio needs an equirectangular panorama, twice as wide as high)"
     except RecordingError as exc:
         return [f"first message not decodable: {exc}"]
     lines = [text]

@@ -246,6 +246,22 @@ def test_panoramas_that_are_not_2_to_1_or_change_size_are_an_error(
         list(iter_frames(rec, rig))
 
 
+def test_inspect_says_when_the_camera_is_not_a_panorama(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from studio.cli import main
+
+    p = tmp_path / "not_pano.mcap"
+    _write_json_mcap(p, [(16, 9)] * 5)
+    assert main(["inspect", str(p)]) == 0
+    assert "16×9, jpeg (not 2:1: studio needs an equirectangular panorama" in capsys.readouterr().out
+    _write_json_mcap(p)
+    assert main(["inspect", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "16×8, jpeg\n" in out
+    assert "not 2:1" not in out
+
+
 def test_studio_label_refuses_a_camera_topic_that_is_not_a_panorama(tmp_path: Path) -> None:
     import subprocess
     import sys
