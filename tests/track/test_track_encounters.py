@@ -266,3 +266,20 @@ def test_a_neighbours_colours_in_a_few_crops_do_not_move_a_track():
     fixed, changed = _run(obs, tracks)
     assert changed == 0
     assert fixed == tracks
+
+
+def test_a_neighbours_colours_just_after_a_meeting_do_not_decide_who_leaves_as_whom():
+    """P and Q meet and leave as in ``_meeting``; for 1.5 s after they part, each one's crop still shows the
+    other (one in front of the other). The tails are scored over 2 s and their colours taken after that, so
+    the tracks still leave with their own people (with 1 s tails the crops of the neighbour decide)."""
+    paths = _meeting(120)
+    paths[80:] = paths[79]  # both stand where they walked to
+    obs = _coloured(_frames(paths), [RED, GREEN])
+    for i in range(55, 70):
+        obs[i] = replace(obs[i], appearance=np.stack([GREEN, RED]))
+    tracks = {1: [(i, int(i >= 40)) for i in range(120)], 2: [(i, int(i < 40)) for i in range(120)]}
+    fixed, _ = _run(obs, tracks)
+    assert _rows(fixed[1]) == [0] * 120
+    assert _rows(fixed[2]) == [1] * 120
+    fixed, _ = _run(obs, tracks, tail_frames=10)
+    assert _rows(fixed[1])[100] == 1
