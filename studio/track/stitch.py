@@ -350,7 +350,7 @@ def _fill_gaps(
         if a in described and c in described and (by_id[c].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s
     }
     out = set(links)
-    for head, tail in free:  # in time order; each goes into the gap whose ends it lies nearest
+    for head, tail in free:  # in time order; each goes into the gap it continues best (see above)
         best, best_key = None, (1, np.inf)
         for (a, c), cur in hosts.items():
             end = by_id[c]
