@@ -175,12 +175,46 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> Counter[str]:
     return kinds
 
 
+HANDOVER_FRAMES = 30  # a track matched to another person within this many frames of its last match
+
+
+def handovers(ev: Any, gt: LabelSet) -> Counter[str]:
+    """Print every time an output track goes on from one person to another (matched to person Q, then to
+    person P within :data:`HANDOVER_FRAMES` frames): with Q still there and how far apart the two are, or
+    Q gone (a hand-off: Q was hidden or left just as P appeared). Returns how many of each kind (Q's
+    distance in steps of 0.2 m, or ``the first one gone``)."""
+    gt_frames = {f.frame: f for f in gt.frames}
+    last: dict[int, tuple[int, int]] = {}  # track -> (frame, person) of its last match
+    kinds: Counter[str] = Counter()
+    for fe in ev.frames:
+        people = {q.id: np.array([q.x, q.y]) for q in gt_frames[fe.frame].people}
+        for g, p, _ in fe.matches:
+            before, q = last.get(p, (-(10**9), g))
+            if q != g and fe.frame - before <= HANDOVER_FRAMES:
+                if q in people:
+                    d = float(np.hypot(*(people[g] - people[q])))
+                    kind = f"{0.2 * np.floor(d / 0.2):.1f}-{0.2 * np.floor(d / 0.2) + 0.2:.1f} m"
+                    how = f"person {q} still there, {d:.2f} m away"
+                else:
+                    kind, how = "the first one gone", f"person {q} gone"
+                kinds[kind] += 1
+                print(
+                    f"  frame {fe.frame:5d} track {p:3d}: person {q} -> {g} "
+                    f"after {fe.frame - before} frames; {how}"
+                )
+            last[p] = (fe.frame, g)
+    return kinds
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="moving")
     ap.add_argument("--seeds", nargs="+", type=int, default=[1])
     ap.add_argument("--seconds", type=float, default=None)
     ap.add_argument("--switches", action="store_true", help="list every identity switch")
+    ap.add_argument(
+        "--handovers", action="store_true", help="list every time an output track goes on with another person"
+    )
     ap.add_argument(
         "--image-period",
         type=float,
@@ -199,6 +233,7 @@ def main() -> None:
     args = ap.parse_args()
     options = LabelOptions()
     total: Counter[str] = Counter()
+    total_handovers: Counter[str] = Counter()
     for seed in args.seeds:
         rec = recording(args.scenario, args.seconds, seed)
         if args.image_period is None:
@@ -234,6 +269,12 @@ def main() -> None:
             kinds = switches(labels, ev, gt)
             total += kinds
             print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+        if args.handovers:
+            kinds = handovers(ev, gt)
+            total_handovers += kinds
+            print("  handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+    if args.handovers and len(args.seeds) > 1:
+        print("all handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(total_handovers.items())))
     if args.switches and len(args.seeds) > 1:
         print("all: " + ", ".join(f"{k} {n}" for k, n in sorted(total.items())))
 

@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from bench_loader import load_bench
 
 from studio.io import load_rig
 from studio.labels import read_labels
@@ -127,20 +126,6 @@ def test_scan_matching_gives_a_robot_without_odometry_its_motion(shared_data: Pa
     assert per_frame[True] < 0.6 * per_frame[False]
 
 
-def _bench(name: str) -> ModuleType:
-    path = Path(__file__).resolve().parents[2] / "bench" / f"{name}.py"
-    sys.path.insert(0, str(path.parent))
-    try:
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None
-        assert spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(path.parent))
-    return module
-
-
 @pytest.mark.parametrize(
     ("bag", "recall", "precision"), [("positive_1", 0.93, 0.95), ("positive_4", 0.97, 0.95)]
 )
@@ -151,7 +136,7 @@ def test_labels_find_the_labelled_people_of_real_scans(
     ``studio label`` laser-only, within 0.3 m of the people made from the labelled legs, in their wedge.
     Measured (``bench/bench_real_labels.py``): positive_1 recall 0.957 / precision 0.985, positive_4
     1.000 / 0.974; the bounds leave a margin."""
-    bench = _bench("bench_real_labels")
+    bench = load_bench("bench_real_labels")
     counts, n_scans, n_tracks, _, _ = bench.label_and_score(
         shared_data / "legs_labelled" / f"{bag}_extracted.bag", tmp_path
     )
