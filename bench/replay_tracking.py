@@ -193,7 +193,8 @@ def handovers(ev: Any, gt: LabelSet) -> Counter[str]:
             if q != g and fe.frame - before <= HANDOVER_FRAMES:
                 if q in people:
                     d = float(np.hypot(*(people[g] - people[q])))
-                    kind = f"{0.2 * np.floor(d / 0.2):.1f}-{0.2 * np.floor(d / 0.2) + 0.2:.1f} m"
+                    lo = 0.2 * np.floor(d / 0.2)
+                    kind = f"{lo:.1f}-{lo + 0.2:.1f} m"
                     how = f"person {q} still there, {d:.2f} m away"
                 else:
                     kind, how = "the first one gone", f"person {q} gone"
