@@ -237,7 +237,7 @@ def _laser(rec: Any, rig: Any, detector: Any, period_ns: int) -> LaserPeople:
         keep = np.ones(len(xy), bool)
         for i, s in enumerate(segs[: len(xy)]):
             s = s[np.all(np.isfinite(s), axis=1)]
-            keep[i] = not len(s) or np.mean(smap.static_fraction(s) >= _STATIC) < _STATIC
+            keep[i] = not len(s) or np.mean(smap.structure(s, occupied=_STATIC)) < _STATIC
         kept.append(xy[keep])
     return LaserPeople.from_frames(np.array(stamps, dtype=np.int64), np.array(robot), kept)
 

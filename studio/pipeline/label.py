@@ -96,7 +96,7 @@ def _static_masks(
             if m.n_scans >= _BODY_MIN_SCANS:
                 sel = f.origin_of_point == k
                 body[sel] = m.hit_fraction(base[sel]) >= _BODY_HIT_SHARE
-        pt_static.append((smap.static_fraction(pts_world) >= _STATIC_OCCUPIED) | body)
+        pt_static.append(smap.structure(pts_world, occupied=_STATIC_OCCUPIED) | body)
         if f.laser is not None and len(f.laser.xy):
             ds = smap.is_static(f.laser, pts_world, occupied=_STATIC_OCCUPIED, min_share=_SEGMENT_SHARE)
             if body.any() and f.laser.segments is not None:

@@ -21,6 +21,17 @@ without them someone who stood still in front of open space (a hall longer than 
 never seen free there and looked like structure. Drivers that write a small value for "no return" (older
 Hokuyo drivers, as in leg_tracker's bags) cannot be told from errors, and those beams mark nothing.
 
+A share cannot tell structure from someone who stood at one spot for most of the time the robot looked
+at it (a person waiting 60 s of a 96 s recording, seen mostly while they waited). What can is *when* the
+cell was free: structure is never seen empty, a spot someone walked to was, before they came or after
+they left. A cell that was seen **empty** — free, with the eight cells around it free too, within
+``empty_range`` of the sensor, in ``empty_scans`` observations in a row with no hit in between — is never
+structure, whatever its share. Both conditions keep structure out: a thin or round object's cells at
+the edge of its silhouette are crossed by grazing beams from some viewpoints (a 0.4 m pillar's were, in
+runs of 20–60 scans), but the cells beside them inside the object never are; and a chair leg far away
+that falls between two beams is missed by whole scans, which the range limit ignores (at 4 m the beams
+of a 0.25–0.5° scanner are 2–3.5 cm apart).
+
 A detection is static when most of its *segment's* points lie on occupied cells — deciding per segment is
 much more robust than per point. Built in the sensor (or base) frame instead of odom, the same map finds
 returns from the robot's own body (occupied in every scan whatever the robot does).
@@ -42,6 +53,7 @@ __all__ = ["StaticMap", "StaticMapBuilder"]
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 _SHIFT = 8  # fractional bits of the line end points given to OpenCV
+_VIEWS = 8  # scan origins remembered by StaticMapBuilder._new_view
 
 
 class StaticMap:
@@ -53,19 +65,21 @@ class StaticMap:
         hits: ``(W, H)`` int32, scans in which the cell (or a neighbour within ``dilate`` cells) was hit.
         free: ``(W, H)`` int32, scans in which a beam passed through the cell and it was not hit.
         n_scans: number of scans accumulated.
+        empty: ``(W, H)`` bool, the cell was once seen empty (see the module docstring): never structure.
     """
 
     def __init__(self, *, cell: float, origin: ArrayLike, hits: NDArray[np.int32], free: NDArray[np.int32],
-                 n_scans: int) -> None:  # fmt: skip
+                 n_scans: int, empty: NDArray[np.bool_] | None = None) -> None:  # fmt: skip
         if cell <= 0.0:
             raise LaserDetectorError(f"static map cell size must be positive, got {cell}")
-        if hits.shape != free.shape or hits.ndim != 2:
-            raise ValueError("hits and free must be 2-D arrays of one shape")
+        if hits.shape != free.shape or hits.ndim != 2 or (empty is not None and empty.shape != hits.shape):
+            raise ValueError("hits, free and empty must be 2-D arrays of one shape")
         self.cell = float(cell)
         self.origin = np.asarray(origin, dtype=np.float64).reshape(2)
         self.hits = hits
         self.free = free
         self.n_scans = int(n_scans)
+        self.empty = np.zeros(hits.shape, dtype=bool) if empty is None else empty
 
     # -- building -------------------------------------------------------------------------------------
     @classmethod
@@ -78,6 +92,9 @@ class StaticMap:
         free_margin: float = 0.15,
         dilate: int = 1,
         pad: float = 5.0,
+        empty_range: float = 4.0,
+        empty_scans: int = 20,
+        empty_step: float = 0.05,
     ) -> StaticMap:
         """Accumulate scans into a map.
 
@@ -93,22 +110,33 @@ class StaticMap:
                 marked free (range noise).
             dilate: a hit marks the cells within this many cells around it too (absorbs jitter).
             pad: extra room added when the grid grows, metres.
+            empty_range: a cell is seen empty only within this distance of the sensor, metres.
+            empty_scans: a cell seen empty in this many observations in a row (no hit in between) is never
+                structure (0: every cell is judged by its share alone).
 
         Returns:
             The map.
         """
         builder = StaticMapBuilder(
-            cell=cell, max_free_range=max_free_range, free_margin=free_margin, dilate=dilate, pad=pad
+            cell=cell,
+            max_free_range=max_free_range,
+            free_margin=free_margin,
+            dilate=dilate,
+            pad=pad,
+            empty_range=empty_range,
+            empty_scans=empty_scans,
+            empty_step=empty_step,
         )
         for scan in scans_in_odom:
             builder.add(*scan)
         return builder.finish()
 
     # -- queries --------------------------------------------------------------------------------------
-    def _lookup(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+    def _lookup(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.bool_]]:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
         h = np.zeros(pts.shape[0], dtype=np.int32)
         f = np.zeros(pts.shape[0], dtype=np.int32)
+        e = np.zeros(pts.shape[0], dtype=bool)
         ok = np.all(np.isfinite(pts), axis=1)
         ij = np.floor((pts[ok] - self.origin) / self.cell).astype(np.int64)
         inside = (
@@ -120,11 +148,12 @@ class StaticMap:
         sel = np.flatnonzero(ok)[inside]
         h[sel] = self.hits[ij[inside, 0], ij[inside, 1]]
         f[sel] = self.free[ij[inside, 0], ij[inside, 1]]
-        return h, f
+        e[sel] = self.empty[ij[inside, 0], ij[inside, 1]]
+        return h, f, e
 
     def observations(self, points: ArrayLike) -> NDArray[np.int32]:
         """``(K,)`` number of scans that observed (hit or saw free) the cell of each point."""
-        h, f = self._lookup(points)
+        h, f, _ = self._lookup(points)
         return h + f
 
     def static_fraction(self, points: ArrayLike, *, min_observations: int = 5) -> FloatArray:
@@ -132,12 +161,20 @@ class StaticMap:
 
         Cells observed in fewer than ``min_observations`` scans, and NaN points, give 0 (not static).
         """
-        h, f = self._lookup(points)
+        h, f, _ = self._lookup(points)
         seen = h + f
         out = np.zeros(h.shape[0])
         ok = seen >= max(1, min_observations)
         out[ok] = h[ok] / seen[ok]
         return out
+
+    def structure(
+        self, points: ArrayLike, *, occupied: float = 0.7, min_observations: int = 5
+    ) -> NDArray[np.bool_]:
+        """``(K,)`` whether each point lies on structure: its cell's occupied fraction is at least
+        ``occupied`` (:meth:`static_fraction`) and the cell was never seen empty."""
+        _, _, empty = self._lookup(points)
+        return (self.static_fraction(points, min_observations=min_observations) >= occupied) & ~empty
 
     def hit_fraction(self, points: ArrayLike) -> FloatArray:
         """``(K,)`` share of all the map's scans that hit each point's cell (0 for NaN points).
@@ -145,7 +182,7 @@ class StaticMap:
         In a map of the scans in the robot's base frame, returns from the robot's own body (a mast, a wheel
         guard, another scanner) score near 1 whatever the robot does; the world passing by scores low.
         """
-        h, _ = self._lookup(points)
+        h, _, _ = self._lookup(points)
         return h / max(self.n_scans, 1)
 
     def is_static(
@@ -165,7 +202,8 @@ class StaticMap:
             points: ``(M, 2)`` the scan's points in the map frame (same order as given to the detector).
                 Without it (or without segments) each detection is judged by its position ``xy`` alone.
             xy: ``(N, 2)`` detection positions in the map frame; needed only when judging by position.
-            occupied: a cell is static when its occupied fraction is at least this.
+            occupied: a cell is static when its occupied fraction is at least this (and it was never seen
+                empty, :meth:`structure`).
             min_share: a detection is static when at least this share of its segment points is on static
                 cells.
             min_observations: see :meth:`static_fraction`.
@@ -179,18 +217,18 @@ class StaticMap:
             return out
         if points is not None and detections.segments is not None:
             pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-            frac = self.static_fraction(pts, min_observations=min_observations)
+            on = self.structure(pts, occupied=occupied, min_observations=min_observations)
             for i, seg in enumerate(detections.segments):
                 seg = seg[np.all(np.isfinite(pts[seg]), axis=1)]
                 if seg.size:
-                    out[i] = np.mean(frac[seg] >= occupied) >= min_share
+                    out[i] = np.mean(on[seg]) >= min_share
             return out
         if xy is None:
             raise LaserDetectorError("is_static needs the scan points with segments, or the positions xy")
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         if p.shape[0] != n:
             raise ValueError(f"xy must have shape ({n}, 2), got {p.shape}")
-        return self.static_fraction(p, min_observations=min_observations) >= occupied
+        return self.structure(p, occupied=occupied, min_observations=min_observations)
 
     def filter(
         self,
@@ -228,6 +266,9 @@ class StaticMapBuilder:
         free_margin: float = 0.15,
         dilate: int = 1,
         pad: float = 5.0,
+        empty_range: float = 4.0,
+        empty_scans: int = 20,
+        empty_step: float = 0.05,
     ) -> None:
         if not cell > 0.0:
             raise LaserDetectorError(f"static map cell size must be positive, got {cell}")
@@ -235,6 +276,13 @@ class StaticMapBuilder:
         self.max_free_range = float(max_free_range)
         self.free_margin = float(free_margin)
         self.dilate = max(int(dilate), 0)
+        self.empty_range = min(float(empty_range), self.max_free_range)
+        self.empty_scans = max(int(empty_scans), 0)
+        self.empty_step = float(empty_step)
+        self._views: list[FloatArray] = []
+        n = int(np.ceil(max(self.empty_range, 0.0) / cell))
+        ij = np.arange(-n, n + 1) * cell
+        self._disk = (np.hypot(ij[:, None], ij[None, :]) <= self.empty_range).astype(np.uint8)
         self._grid = _Grid(cell=cell, pad=pad)
         self.n_scans = 0
         self._done = False
@@ -246,7 +294,8 @@ class StaticMapBuilder:
         The scan's hits (dilated by ``dilate`` cells) count once each in ``hits``; every cell a beam's line
         crosses from the sensor to ``free_margin`` + one cell before its return, or to its open end (at most
         ``max_free_range`` out), and that the scan did not hit counts once in ``free``. The lines are drawn
-        with OpenCV on the window of the grid the scan covers.
+        with OpenCV on the window of the grid the scan covers. A cell the scan saw empty (free, its eight
+        neighbours too, within ``empty_range``) adds one to its run of such scans; a hit ends the run.
         """
         if self._done:
             raise RuntimeError("StaticMapBuilder.add after finish (the map shares the builder's counts)")
@@ -297,12 +346,38 @@ class StaticMapBuilder:
         win = grid.window(lo, hi)
         grid.hits[win] += hit_mask
         grid.free[win] += free_mask & (hit_mask ^ 1)
+        if self.empty_scans and self.empty_range > 0.0:
+            run = grid.run[win]  # views: updated in place
+            run[hit_mask == 1] = 0
+            if not self._new_view(o):
+                return
+            # the free cells within empty_range of the sensor (a disk around its cell) whose neighbours
+            # are free too
+            c, n = o_cell - lo, self._disk.shape[0] // 2
+            a, b = np.maximum(c - n, 0), np.minimum(c + n + 1, shape)
+            disk = self._disk[a[0] - c[0] + n : b[0] - c[0] + n, a[1] - c[1] + n : b[1] - c[1] + n]
+            near = free_mask[a[0] : b[0], a[1] : b[1]] & (hit_mask[a[0] : b[0], a[1] : b[1]] ^ 1) & disk
+            seen_empty = np.asarray(cv2.erode(near, np.ones((3, 3), np.uint8)), np.uint8)
+            run[a[0] : b[0], a[1] : b[1]] += seen_empty
+            grid.empty[win] |= run >= self.empty_scans
+
+    def _new_view(self, origin: FloatArray) -> bool:
+        """Whether a scan from ``origin`` counts towards the runs of empty scans: it lies ``empty_step`` or
+        more from the origins of the last few scans that counted (several scanners take turns)."""
+        views = self._views
+        if views and min(float(np.hypot(*(origin - v))) for v in views) < self.empty_step:
+            return False
+        views.append(origin)
+        del views[:-_VIEWS]
+        return True
 
     def finish(self) -> StaticMap:
         """The map of the scans added so far (it takes over the counts: add no scans after this)."""
         self._done = True
         g = self._grid
-        return StaticMap(cell=self.cell, origin=g.origin(), hits=g.hits, free=g.free, n_scans=self.n_scans)
+        return StaticMap(
+            cell=self.cell, origin=g.origin(), hits=g.hits, free=g.free, n_scans=self.n_scans, empty=g.empty
+        )
 
 
 class _Grid:
@@ -314,6 +389,8 @@ class _Grid:
         self.lo = np.zeros(2, dtype=np.int64)  # cell index of array element (0, 0)
         self.hits = np.zeros((0, 0), dtype=np.int32)
         self.free = np.zeros((0, 0), dtype=np.int32)
+        self.run = np.zeros((0, 0), dtype=np.int32)  # scans in a row that saw the cell empty, until a hit
+        self.empty = np.zeros((0, 0), dtype=bool)  # the run reached StaticMapBuilder.empty_scans once
 
     def cells(self, pts: FloatArray) -> IntArray:
         return np.floor(np.asarray(pts).reshape(-1, 2) / self.cell).astype(np.int64)
@@ -338,13 +415,15 @@ class _Grid:
             raise LaserDetectorError(
                 "static map would exceed 400 M cells: points far away or a huge cell count"
             )
-        hits = np.zeros(tuple(size), dtype=np.int32)
-        free = np.zeros(tuple(size), dtype=np.int32)
-        if self.hits.size:
-            a = self.lo - new_lo
-            hits[a[0] : a[0] + shape[0], a[1] : a[1] + shape[1]] = self.hits
-            free[a[0] : a[0] + shape[0], a[1] : a[1] + shape[1]] = self.free
-        self.lo, self.hits, self.free = new_lo, hits, free
+        grown = []
+        for old in (self.hits, self.free, self.run, self.empty):
+            new = np.zeros(tuple(size), dtype=old.dtype)
+            if self.hits.size:
+                a = self.lo - new_lo
+                new[a[0] : a[0] + shape[0], a[1] : a[1] + shape[1]] = old
+            grown.append(new)
+        self.lo = new_lo
+        self.hits, self.free, self.run, self.empty = grown
 
     def window(self, lo: IntArray, hi: IntArray) -> tuple[slice, slice]:
         """The array slices of cells ``lo`` … ``hi`` (inclusive; :meth:`ensure` them first)."""

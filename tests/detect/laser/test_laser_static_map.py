@@ -127,7 +127,9 @@ def _fan(step_deg=0.25, gap=(10.0, 20.0)):
 def test_one_scan_marks_free_space_along_the_beams():
     pts, origin = _fan()
     smap = StaticMap.build([(pts, origin)], cell=0.05, free_margin=0.15)
-    h, f = smap._lookup(np.array([[1.5, 0.0], [2.7, 0.0], [2.9, 0.0], [3.0, 0.0], [3.6, 0.0], [2.0, 0.55]]))
+    h, f, _ = smap._lookup(
+        np.array([[1.5, 0.0], [2.7, 0.0], [2.9, 0.0], [3.0, 0.0], [3.6, 0.0], [2.0, 0.55]])
+    )
     # in the fan, before the margin: free; the margin and the wall: not; behind the wall: unseen
     assert f.tolist() == [1, 1, 0, 0, 0, 0]
     assert h.tolist() == [0, 0, 0, 1, 0, 0]
@@ -184,3 +186,67 @@ def test_beams_that_met_nothing_mark_free_space():
     assert short.observations(spot)[0] == 12
     # a body map (no free space at all) ignores them
     assert StaticMap.build(scans, max_free_range=0.0).free.sum() == 0
+
+
+def _waiting(
+    n: int = 120, arrive: int = 30, drive: int = 30
+) -> list[tuple[np.ndarray, np.ndarray, tuple[float, ...]]]:
+    """The robot drives along x towards a 0.4 m pillar, 6 cm per scan for the first ``drive`` scans, then
+    stands; the spot ahead to its right is empty for the first ``arrive`` scans, then someone stands there
+    for the rest of the recording."""
+    pillar, person = (3.0, 1.5, 0.2), (2.5, -1.0, 0.15)
+    out = []
+    for k in range(n):
+        origin = (0.06 * min(k, drive), 0.0)
+        circles = [pillar] + ([person] if k >= arrive else [])
+        pts, _ = cast(circles=circles, walls=ROOM, origin=origin, step_deg=0.5)
+        out.append((pts + np.array(origin), np.array(origin), person))
+    return out
+
+
+def test_a_spot_seen_empty_before_someone_waited_there_is_not_structure():
+    """Someone who stands at one spot for 75 % of the recording (in front of a robot that stopped there)
+    hits its cells in 75 % of the scans that observe them: by the share alone they are structure. The
+    spot was seen empty (free, the cells around it too, within 4 m) from 30 places in a row before they
+    came, which a pillar's cells never are: the beams that graze its silhouette cross the cells at its
+    edge, never the ones inside."""
+    scans = _waiting()
+    smap = StaticMap.build((p, o) for p, o, _ in scans)
+    share_only = StaticMap.build(((p, o) for p, o, _ in scans), empty_scans=0)
+    pts = scans[60][0]
+    person = np.flatnonzero(np.hypot(*(pts - np.array([2.5, -1.0])).T) < 0.15 + 0.03)
+    pillar = np.flatnonzero(np.hypot(*(pts - np.array([3.0, 1.5])).T) < 0.2 + 0.03)
+    assert len(person) >= 3
+    assert len(pillar) >= 3
+    assert np.all(share_only.static_fraction(pts[person]) >= 0.7)
+    dets = LaserDetections(
+        np.array([pts[person].mean(0), pts[pillar].mean(0)]),
+        np.full(2, 0.9),
+        np.full(2, KIND_BLOB),
+        np.full(2, 0.2),
+        (person, pillar),
+    )
+    assert share_only.is_static(dets, pts).tolist() == [True, True]
+    assert smap.is_static(dets, pts).tolist() == [False, True]
+    assert not smap.structure(pts[person]).any()
+    # the pillar's silhouette was crossed by grazing beams: free in some scans, yet never seen empty
+    edge = np.hypot(*(np.argwhere(smap.free > 0) * 0.05 + smap.origin + 0.025 - np.array([3.0, 1.5])).T)
+    assert np.any(edge < 0.25)
+    assert np.all(smap.structure(pts[pillar]))
+    # seen empty from fewer places in a row than empty_scans, or too far away: the share decides again
+    for kw in ({"empty_scans": 40}, {"empty_range": 0.9}):
+        assert StaticMap.build(((p, o) for p, o, _ in scans), **kw).is_static(dets, pts).tolist() == [
+            True,
+            True,
+        ]
+
+
+def test_scans_from_one_place_see_a_spot_empty_once():
+    """A thin leg that falls between two beams is missed by every scan from the same place: a robot that
+    stands still sees one view of the spot however many scans it takes, and a run of empty scans counts
+    places, not scans."""
+    scans = _waiting(drive=0)
+    pts = scans[60][0]
+    person = np.flatnonzero(np.hypot(*(pts - np.array([2.5, -1.0])).T) < 0.15 + 0.03)
+    assert np.all(StaticMap.build((p, o) for p, o, _ in scans).structure(pts[person]))
+    assert not StaticMap.build(((p, o) for p, o, _ in scans), empty_step=0.0).structure(pts[person]).any()
