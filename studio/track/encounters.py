@@ -22,9 +22,14 @@ observations after the encounter), and the median colours of each tail's first `
 described observations after it count as that many observations of the track that continues with them.
 Motion alone cannot tell who leaves as whom when two people stand together or walk side by side (letting
 it exchange tails made things worse, session 9), and colours alone are fooled by a crop that shows the
-neighbour; together they decide the whole encounter at once. Without colours (a laser-only rig, someone the
-camera did not describe) the tracks leave as they came, and :mod:`studio.track.swaps` and stitching have
-the last word.
+neighbour; together they decide the whole encounter at once. Without colours (a laser-only rig) the
+tracks leave as they came, and :mod:`studio.track.swaps` and stitching have the last word. When only one
+track has colours before the encounter (the camera did not describe the other: someone standing half
+hidden), they take part only when they leave no doubt: both tails have colours, and the described
+track's own tail differs from them by more than ``one_side_differ`` ΔE while the other tail matches them
+within ``one_side_match``; the undescribed track's observations then cost half the cap whoever takes them,
+and so does its side of leaving. Letting one side's colours take part always got as many encounters wrong
+as right (session 23).
 
 Decided together, three or four tracks that come close at once (all ways of giving each frame's
 observations to them, every permutation of their tails) did not do better than pair by pair (session 18,
@@ -87,13 +92,20 @@ class EncounterConfig:
         appearance_views: described observations whose median colours are a track's colours before an
             encounter and its tail's after it.
         split_legs: a laser leg pair may go one leg to each of two tracks (see the module docstring).
+        one_side_match: when only one track has colours before the encounter, the other track's tail must
+            match them within this, ΔE …
+        one_side_differ: … and its own tail differ from them by more than this, for colours to take part.
 
     ``pad_frames`` 10 and ``margin`` 5 (session 16; before 5 and 10): on 16 simulated ``moving`` recordings
     (seeds 1–8 of simulator versions 2 and 3) identity switches 128 → 112, F1 and MOTA up 0.001–0.002, IDF1
     +0.003 / −0.004; laser-only replays 210 → 208 switches. Colours and exchanged tails: session 18
     (``docs/results.md``). ``tail_frames`` 20 (session 23; before 10): the tails' colours are then taken
     from further past the encounter, where a crop shows the neighbour less; v4 ``moving`` seed 2 3 → 0
-    switches, the other replays of ``docs/results.md`` unchanged.
+    switches, the other replays of ``docs/results.md`` unchanged. One side's colours (session 24): of the
+    17 encounters on v4 ``moving`` seeds 1–12 with one side described and both tails coloured, two fit the
+    rule (seed 3: own tail 45.8 ΔE away, the other 4.1; seed 12: 39.7 and 2.7); in the others the own tail
+    lies within 7.4 or the other 23 or more away, so any ``one_side_match`` in 5–23 with any
+    ``one_side_differ`` in 8–39 picks these two alone.
     """
 
     close_m: float = 0.8
@@ -105,12 +117,16 @@ class EncounterConfig:
     appearance_cap: float = 20.0
     appearance_views: int = 5
     split_legs: bool = True
+    one_side_match: float = 8.0
+    one_side_differ: float = 25.0
 
     def __post_init__(self) -> None:
         if self.close_m <= 0 or self.beam < 1 or min(self.pad_frames, self.tail_frames, self.margin) < 0:
             raise ValueError("close_m and beam must be positive, pad_frames, tail_frames and margin >= 0")
         if self.appearance_weight < 0 or self.appearance_cap <= 0 or self.appearance_views < 1:
             raise ValueError("appearance_weight must be >= 0, appearance_cap and appearance_views positive")
+        if not 0 <= self.one_side_match <= self.one_side_differ:
+            raise ValueError("one_side_match must be >= 0 and at most one_side_differ")
 
 
 def _windows(
@@ -323,18 +339,42 @@ def _appearance(
     obs: Sequence[Observations], hs: list[Hits], spans: list[Hits], f0: int, last: int, cfg: EncounterConfig
 ) -> tuple[dict[Hit, FloatArray], list[NDArray[np.float32] | None], list[NDArray[np.float32] | None]]:
     """The colour cost, per track, of each described observation the tracks hold from ``f0`` to ``last``
-    (their hits there: ``spans``; none when a track has no colours before the encounter), and each track's
-    colours before the encounter and its tail's after ``last``."""
+    (their hits there: ``spans``; none when colours do not take part, see the module docstring), and each
+    track's colours before the encounter and its tail's after ``last``."""
     views = cfg.appearance_views
     before = [side_colours(obs, h, f0, last, False, views) for h in hs]
     after = [side_colours(obs, h, f0, last, True, views) for h in hs]
-    if cfg.appearance_weight <= 0 or any(c is None for c in before):
+    if cfg.appearance_weight <= 0 or all(c is None for c in before):
+        return {}, before, after
+    if any(c is None for c in before) and not _one_side_decides(before, after, cfg):
         return {}, before, after
     out = {}
     for span in spans:
         for i, r in span:
             app = obs[i].appearance
             if app is not None and np.all(np.isfinite(app[r])):
-                d = [min(appearance_distance(app[r], c), cfg.appearance_cap) for c in before]  # type: ignore[arg-type]
+                d = [
+                    0.5 * cfg.appearance_cap
+                    if c is None
+                    else min(appearance_distance(app[r], c), cfg.appearance_cap)
+                    for c in before
+                ]
                 out[(i, r)] = cfg.appearance_weight * np.array(d)
     return out, before, after
+
+
+def _one_side_decides(
+    before: list[NDArray[np.float32] | None], after: list[NDArray[np.float32] | None], cfg: EncounterConfig
+) -> bool:
+    """Whether the colours of the tracks described before an encounter leave no doubt where they went:
+    every tail has colours, and each described track's own tail differs from its colours by more than
+    ``one_side_differ`` while another tail matches them within ``one_side_match``."""
+    if any(c is None for c in after):
+        return False
+    for t, ref in enumerate(before):
+        if ref is None:
+            continue
+        d = [appearance_distance(c, ref) for c in after]  # type: ignore[arg-type]
+        if d[t] <= cfg.one_side_differ or min(d[:t] + d[t + 1 :]) >= cfg.one_side_match:
+            return False
+    return True

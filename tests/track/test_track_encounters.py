@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from studio.track import Observations
+from studio.track.appearance import appearance_distance
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.smooth import filter_track, rts_smooth
 
@@ -140,6 +141,8 @@ def test_config_is_checked():
         EncounterConfig(appearance_cap=0.0)
     with pytest.raises(ValueError, match="appearance_weight must be >= 0"):
         EncounterConfig(appearance_weight=-0.1)
+    with pytest.raises(ValueError, match="one_side_match must be >= 0 and at most one_side_differ"):
+        EncounterConfig(one_side_match=30.0, one_side_differ=25.0)
 
 
 def test_an_encounter_past_a_track_shortened_by_an_earlier_one_is_skipped(monkeypatch):
@@ -282,4 +285,37 @@ def test_a_neighbours_colours_just_after_a_meeting_do_not_decide_who_leaves_as_w
     assert _rows(fixed[1]) == [0] * 120
     assert _rows(fixed[2]) == [1] * 120
     fixed, _ = _run(obs, tracks, tail_frames=10)
+    assert _rows(fixed[1])[100] == 1
+
+
+def _half_described(q_after):
+    """``_meeting`` over 12 s (both stand where they walked to after 8 s): P is described throughout (RED),
+    Q only after the meeting (``q_after``; before it the camera did not describe them)."""
+    paths = _meeting(120)
+    paths[80:] = paths[79]
+    obs = _coloured(_frames(paths), [RED, q_after])
+    for i in range(45):
+        app = obs[i].appearance.copy()
+        app[1] = np.nan
+        obs[i] = replace(obs[i], appearance=app)
+    return obs
+
+
+def test_one_sides_colours_decide_only_when_they_leave_no_doubt():
+    """The online tracker let P's track leave with Q. Only P was described before the meeting; its colours
+    are far from the tail it left with and match the other tail: the tracks leave exchanged. Where Q's
+    colours come close to P's, one side's colours do not decide, and the tracks leave as they came."""
+    assert appearance_distance(RED, GREEN) > EncounterConfig().one_side_differ
+    tracks = {1: [(i, int(i >= 40)) for i in range(120)], 2: [(i, int(i < 40)) for i in range(120)]}
+    fixed, changed = _run(_half_described(GREEN), tracks)
+    assert changed == 1
+    assert _rows(fixed[1]) == [0] * 120
+    assert _rows(fixed[2]) == [1] * 120
+    # the same encounter with the rule off (no tail ever matches within 0 ΔE): motion alone, as they came
+    fixed, _ = _run(_half_described(GREEN), tracks, one_side_match=0.0)
+    assert _rows(fixed[1])[100] == 1
+    # Q in clothes 15 ΔE from P's: the own tail is not far enough from P's colours to be sure
+    near_red = RED + np.array([0.0, 0.0, 15.0, 0.0, 0.0, 0.0], np.float32)
+    assert 10.0 < appearance_distance(RED, near_red) < EncounterConfig().one_side_differ
+    fixed, _ = _run(_half_described(near_red), tracks)
     assert _rows(fixed[1])[100] == 1
