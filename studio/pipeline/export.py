@@ -111,9 +111,8 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "## Known limits",
         "- These are automatic labels: check them (`studio annotate`) before using them as ground truth.",
         "- Image-only positions assume a flat floor at z = 0 of the base frame and visible feet.",
-        "- People who never move and stand on a spot the laser sees as static for most of the recording may "
-        "be "
-        "filtered out as structure.",
+        "- Someone who stands on one spot for most of the time the laser sees it may be filtered out as "
+        "structure, unless the laser saw the spot empty from within 4 m while the robot moved.",
     ]
     if any("oracle" in n for n in result.notes) or (options.image_detector or "").startswith("oracle"):
         lines.append("- Boxes come from the ORACLE detector (ground truth with noise): simulated data only.")
