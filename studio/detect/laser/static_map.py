@@ -25,12 +25,15 @@ A share cannot tell structure from someone who stood at one spot for most of the
 at it (a person waiting 60 s of a 96 s recording, seen mostly while they waited). What can is *when* the
 cell was free: structure is never seen empty, a spot someone walked to was, before they came or after
 they left. A cell that was seen **empty** — free, with the eight cells around it free too, within
-``empty_range`` of the sensor, in ``empty_scans`` observations in a row with no hit in between — is never
-structure, whatever its share. Both conditions keep structure out: a thin or round object's cells at
-the edge of its silhouette are crossed by grazing beams from some viewpoints (a 0.4 m pillar's were, in
-runs of 20–60 scans), but the cells beside them inside the object never are; and a chair leg far away
-that falls between two beams is missed by whole scans, which the range limit ignores (at 4 m the beams
-of a 0.25–0.5° scanner are 2–3.5 cm apart).
+``empty_range`` of the sensor — by ``empty_scans`` scans in a row taken from different places (each
+``empty_step`` or more from the last few that counted) with no hit in between is never structure,
+whatever its share. Each condition keeps structure out: a thin or round object's cells at the edge of its
+silhouette are crossed by grazing beams from some viewpoints (a 0.4 m pillar's were, in runs of 20–60
+scans), but the cells beside them inside the object never are; a chair leg far away that falls between
+two beams is missed by whole scans, which the range limit ignores (at 4 m the beams of a 0.25–0.5°
+scanner are 2–3.5 cm apart); and a table leg between two beams of a robot that stands still is missed by
+every scan it takes from there. So a robot that never moves never sees a spot empty: there the share
+alone decides.
 
 A detection is static when most of its *segment's* points lie on occupied cells — deciding per segment is
 much more robust than per point. Built in the sensor (or base) frame instead of odom, the same map finds
@@ -111,8 +114,9 @@ class StaticMap:
             dilate: a hit marks the cells within this many cells around it too (absorbs jitter).
             pad: extra room added when the grid grows, metres.
             empty_range: a cell is seen empty only within this distance of the sensor, metres.
-            empty_scans: a cell seen empty in this many observations in a row (no hit in between) is never
+            empty_scans: a cell seen empty in this many scans in a row (no hit in between) is never
                 structure (0: every cell is judged by its share alone).
+            empty_step: only scans taken this far or farther from the last few that counted count, metres.
 
         Returns:
             The map.
