@@ -166,19 +166,15 @@ class StaticMap:
         Cells observed in fewer than ``min_observations`` scans, and NaN points, give 0 (not static).
         """
         h, f, _ = self._lookup(points)
-        seen = h + f
-        out = np.zeros(h.shape[0])
-        ok = seen >= max(1, min_observations)
-        out[ok] = h[ok] / seen[ok]
-        return out
+        return _fraction(h, f, min_observations)
 
     def structure(
         self, points: ArrayLike, *, occupied: float = 0.7, min_observations: int = 5
     ) -> NDArray[np.bool_]:
         """``(K,)`` whether each point lies on structure: its cell's occupied fraction is at least
         ``occupied`` (:meth:`static_fraction`) and the cell was never seen empty."""
-        _, _, empty = self._lookup(points)
-        return (self.static_fraction(points, min_observations=min_observations) >= occupied) & ~empty
+        h, f, empty = self._lookup(points)
+        return (_fraction(h, f, min_observations) >= occupied) & ~empty
 
     def hit_fraction(self, points: ArrayLike) -> FloatArray:
         """``(K,)`` share of all the map's scans that hit each point's cell (0 for NaN points).
@@ -254,6 +250,15 @@ class StaticMap:
             min_observations=min_observations,
         )
         return detections.select(~static)
+
+
+def _fraction(h: NDArray[np.int32], f: NDArray[np.int32], min_observations: int) -> FloatArray:
+    """``hit / (hit + free)``, 0 where fewer than ``min_observations`` scans observed the cell."""
+    seen = h + f
+    out = np.zeros(h.shape[0])
+    ok = seen >= max(1, min_observations)
+    out[ok] = h[ok] / seen[ok]
+    return out
 
 
 class StaticMapBuilder:
