@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from bench_loader import load_bench
 
 from studio.evaluate import evaluate
+from studio.fuse.base import PersonObservations
+from studio.geometry.se import Pose2
 from studio.labels import LabelFrame, LabelPerson, LabelSet
+from studio.pipeline.base import FrameResult
+from studio.track.base import Observations
+from studio.track.offline import tracks_from_hits
 
 
 def _frame(i: int, people: dict[int, tuple[float, float]]) -> LabelFrame:
@@ -37,3 +43,63 @@ def test_handovers_tells_a_hand_off_from_a_neighbour(capsys: pytest.CaptureFixtu
     assert "frame    10 track   7: person 1 -> 2 after 1 frames; person 1 gone" in out
     assert "frame    15 track   8: person 3 -> 4 after 1 frames; person 3 still there, 0.50 m away" in out
     assert "frame    17 track   8: person 4 -> 3 after 1 frames; person 4 still there, 0.50 m away" in out
+
+
+def _walk(swap: bool) -> tuple[list[Observations], dict[int, list[tuple[int, int]]]]:
+    """Two people walking side by side 1 m apart at 1 m/s, observed at 10 Hz; each wears other colours.
+    Their tracks as a tracker that kept them apart (``swap`` False) or exchanged them halfway made them."""
+    rng = np.random.default_rng(0)
+    obs = []
+    for i in range(40):
+        xy = np.array([[0.1 * i, 0.0], [0.1 * i, 1.0]]) + rng.normal(0.0, 0.03, (2, 2))
+        colours = np.array([[50, 40, 20, 50, 40, 20], [50, -30, -30, 50, -30, -30]], np.float32)
+        colours += rng.normal(0.0, 2.0, colours.shape).astype(np.float32)
+        cov = np.tile(0.03**2 * np.eye(2), (2, 1, 1))
+        obs.append(Observations(i * 10**8, xy, cov, ("fused", "fused"), np.ones(2), colours, np.arange(2)))
+    tracks = {t: [(i, t if not swap or i < 20 else 1 - t) for i in range(40)] for t in (0, 1)}
+    return obs, tracks
+
+
+def test_an_exchange_halfway_fits_the_trackers_model_worse() -> None:
+    bench = load_bench("replay_tracking")
+    kept = bench.association_likelihood(*_walk(False), accel_sigma=0.65, init_speed_sigma=1.0)
+    swapped = bench.association_likelihood(*_walk(True), accel_sigma=0.65, init_speed_sigma=1.0)
+    assert kept[2] == swapped[2] == 80  # every observation is described and has neighbours
+    assert swapped[0] > kept[0] + 100  # a 1 m jump sideways at 1 m/s
+    assert swapped[1] > kept[1] + 50  # next to the exchange, a track's colours mix both people's
+
+
+def test_capture_keeps_the_hits_of_the_last_call() -> None:
+    bench = load_bench("replay_tracking")
+    obs, tracks = _walk(False)
+
+    def tracker(o: list[Observations], *, config: object) -> object:
+        return tracks_from_hits(o, {t: [h for h in v if h[0] < len(o)] for t, v in tracks.items()})
+
+    run, seen = bench.capture(tracker)
+    run(obs[:10], config=None)
+    run(obs, config=None)
+    observations, hits, _ = seen["last"]
+    assert len(observations) == 40
+    assert {t: sorted(h) for t, h in hits.items()} == tracks
+
+
+def test_jitter_moves_every_observation_by_the_given_noise_and_repeats_per_seed() -> None:
+    bench = load_bench("replay_tracking")
+    n = 2000
+    people = PersonObservations(
+        np.zeros((n, 2)),
+        np.tile(np.eye(2), (n, 1, 1)),
+        np.ones(n),
+        ("laser",) * n,
+        ("laser-only",) * n,
+        np.full((n, 4), np.nan),
+        np.full(n, -1),
+        np.arange(n),
+    )
+    fused = [FrameResult(0, 0, Pose2(), people)]
+    a = bench.jitter(fused, 0.005, (1, 3))[0].observations.xy
+    assert np.std(a) == pytest.approx(0.005, rel=0.05)
+    assert np.array_equal(a, bench.jitter(fused, 0.005, (1, 3))[0].observations.xy)
+    assert not np.array_equal(a, bench.jitter(fused, 0.005, (2, 3))[0].observations.xy)
+    assert np.array_equal(fused[0].observations.xy, np.zeros((n, 2)))  # the input is not changed
