@@ -31,10 +31,12 @@ tracker uses (:func:`association_likelihood`) and their colour spread (each desc
 the median colours of its track's ten described observations either side, up to 20). Where ours scores as
 well as the oracle's, no search over associations under that model finds the oracle's: the evidence, not
 the search, is what falls short. ``--jitter S`` moves every fused observation by Gaussian noise of
-standard deviation S metres (a fixed generator per ``--jitter-seed`` and recording) before tracking: with S
-far below the detectors' own error (5 mm against about 60 mm) the detections are as good as before, so
-the spread of the metrics over a few jitter seeds is how much a tracking change must move them to mean
-anything. The recordings are those of ``bench/run_table.py``.
+standard deviation S metres (a fixed generator per jitter seed and recording) before tracking, once per
+seed of ``--jitter-seeds``: with S far below the detectors' own error (5 mm against about 60 mm) the
+detections are as good as before, so the spread of the switch count over a few jitter seeds (printed at
+the end: per jitter seed the switches of every recording and their total, then their mean and standard
+deviation) is how much a tracking change must move it to mean anything; compare two versions on the same
+jitter seeds, the noise then is the same for both. The recordings are those of ``bench/run_table.py``.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ import itertools
 import pickle
 import time
 from collections import Counter
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -165,6 +167,46 @@ def jitter(fused: list[Any], sigma: float, seed: tuple[int, int]) -> list[Any]:
         o = fr.observations
         out.append(replace(fr, observations=replace(o, xy=o.xy + rng.normal(0.0, sigma, o.xy.shape))))
     return out
+
+
+@dataclass(frozen=True)
+class Run:
+    """The metrics of one tracking run of one recording."""
+
+    jitter_seed: int
+    seed: int
+    switches: int
+    f1: float
+    mota: float
+    idf1: float
+    minutes: float
+
+
+def summary(runs: list[Run]) -> list[str]:
+    """Lines that sum the runs up: per jitter seed the switches over all recordings (per seed, total, per
+    minute) and mean F1 / MOTA / IDF1; with several jitter seeds, the mean and spread of those totals."""
+    by_jitter: dict[int, list[Run]] = {}
+    for r in runs:
+        by_jitter.setdefault(r.jitter_seed, []).append(r)
+    if len(runs) < 2:
+        return []
+    lines, totals = [], []
+    for j, rs in by_jitter.items():
+        n, minutes = sum(r.switches for r in rs), sum(r.minutes for r in rs)
+        totals.append(n)
+        head = f"jitter seed {j}" if len(by_jitter) > 1 else "all"
+        lines.append(
+            f"{head}: IDSW {' '.join(str(r.switches) for r in rs)} = {n} ({n / minutes:.2f}/min); "
+            f"F1 {np.mean([r.f1 for r in rs]):.4f} MOTA {np.mean([r.mota for r in rs]):.4f} "
+            f"IDF1 {np.mean([r.idf1 for r in rs]):.4f}"
+        )
+    if len(totals) > 1:
+        t = np.array(totals, dtype=np.float64)
+        lines.append(
+            f"over {len(t)} jitter seeds: IDSW mean {t.mean():.1f} sd {t.std(ddof=1):.1f} "
+            f"(min {t.min():.0f}, max {t.max():.0f})"
+        )
+    return lines
 
 
 def capture(tracker: Any) -> tuple[Any, dict[str, Any]]:
@@ -342,7 +384,13 @@ def main() -> None:
     ap.add_argument(
         "--jitter", type=float, default=0.0, help="move every fused observation by noise of this σ, m"
     )
-    ap.add_argument("--jitter-seed", type=int, default=0, help="seed of the --jitter noise")
+    ap.add_argument(
+        "--jitter-seeds",
+        nargs="+",
+        type=int,
+        default=[0],
+        help="seeds of the --jitter noise: one tracking run of each recording per seed, and their spread",
+    )
     ap.add_argument(
         "--likelihood",
         action="store_true",
@@ -352,6 +400,7 @@ def main() -> None:
     options = LabelOptions()
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
+    runs: list[Run] = []
     for seed in args.seeds:
         rec = recording(args.scenario, args.seconds, seed)
         if args.image_period is None:
@@ -368,36 +417,41 @@ def main() -> None:
             cam, run_options = None, replace(options, sources="laser")
         gt = read_labels(rec / "ground_truth.jsonl")
         t = time.perf_counter()
-        fused = fuse_all(frames, cam, run_options)
-        if args.jitter > 0:
-            fused = jitter(fused, args.jitter, (args.jitter_seed, seed))
+        fused_once = fuse_all(frames, cam, run_options)
         t_fuse = time.perf_counter() - t
-        tracker = oracle_tracker(fused, gt) if args.oracle else None
-        seen: dict[str, Any] = {}
-        if args.likelihood:
-            tracker, seen = capture(tracker or track_offline)
-        labels, _ = track_all(frames, fused, run_options, has_camera=cam is not None, tracker=tracker)
-        t_track = time.perf_counter() - t - t_fuse
-        ev = evaluate(LabelSet.from_frames(labels), gt)
-        m = ev.metrics()
-        minutes = (labels[-1].stamp_ns - labels[0].stamp_ns) / 60e9
-        print(
-            f"{rec.name}: F1 {m['f1']:.3f} (P {m['precision']:.3f} R {m['recall']:.3f}) MOTA {m['mota']:.3f} "
-            f"IDF1 {m['idf1']:.3f} HOTA {m['hota']:.3f} IDSW {m['id_switches']} "
-            f"({m['id_switches'] / minutes:.1f}/min); static map + fusion {t_fuse:.1f} s, "
-            f"tracking {t_track:.1f} s",
-            flush=True,
-        )
-        if args.likelihood:
-            compare_likelihood(seen, oracle_tracker(fused, gt))
-        if args.switches:
-            kinds = switches(labels, ev, gt)
-            total += kinds
-            print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
-        if args.handovers:
-            kinds = handovers(ev, gt)
-            total_handovers += kinds
-            print("  handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+        for jseed in args.jitter_seeds if args.jitter > 0 else [0]:
+            t = time.perf_counter()
+            fused = fused_once if args.jitter <= 0 else jitter(fused_once, args.jitter, (jseed, seed))
+            tracker = oracle_tracker(fused, gt) if args.oracle else None
+            seen: dict[str, Any] = {}
+            if args.likelihood:
+                tracker, seen = capture(tracker or track_offline)
+            labels, _ = track_all(frames, fused, run_options, has_camera=cam is not None, tracker=tracker)
+            t_track = time.perf_counter() - t
+            ev = evaluate(LabelSet.from_frames(labels), gt)
+            m = ev.metrics()
+            minutes = (labels[-1].stamp_ns - labels[0].stamp_ns) / 60e9
+            runs.append(Run(jseed, seed, m["id_switches"], m["f1"], m["mota"], m["idf1"], minutes))
+            tag = f" jitter seed {jseed}" if args.jitter > 0 else ""
+            print(
+                f"{rec.name}{tag}: F1 {m['f1']:.3f} (P {m['precision']:.3f} R {m['recall']:.3f}) "
+                f"MOTA {m['mota']:.3f} IDF1 {m['idf1']:.3f} HOTA {m['hota']:.3f} IDSW {m['id_switches']} "
+                f"({m['id_switches'] / minutes:.1f}/min); static map + fusion {t_fuse:.1f} s, "
+                f"tracking {t_track:.1f} s",
+                flush=True,
+            )
+            if args.likelihood:
+                compare_likelihood(seen, oracle_tracker(fused, gt))
+            if args.switches:
+                kinds = switches(labels, ev, gt)
+                total += kinds
+                print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+            if args.handovers:
+                kinds = handovers(ev, gt)
+                total_handovers += kinds
+                print("  handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+    for line in summary(runs):
+        print(line)
     if args.handovers and len(args.seeds) > 1:
         print("all handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(total_handovers.items())))
     if args.switches and len(args.seeds) > 1:

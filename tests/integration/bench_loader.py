@@ -19,6 +19,7 @@ def load_bench(name: str) -> ModuleType:
         assert spec is not None
         assert spec.loader is not None
         module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up while the script loads
         spec.loader.exec_module(module)
     finally:
         sys.path.remove(str(BENCH))

@@ -103,3 +103,21 @@ def test_jitter_moves_every_observation_by_the_given_noise_and_repeats_per_seed(
     assert np.array_equal(a, bench.jitter(fused, 0.005, (1, 3))[0].observations.xy)
     assert not np.array_equal(a, bench.jitter(fused, 0.005, (2, 3))[0].observations.xy)
     assert np.array_equal(fused[0].observations.xy, np.zeros((n, 2)))  # the input is not changed
+
+
+def test_summary_totals_each_jitter_seed_and_their_spread() -> None:
+    bench = load_bench("replay_tracking")
+    Run = bench.Run
+    runs = [
+        Run(1, 1, 3, 0.9, 0.8, 0.7, 1.5),
+        Run(1, 2, 1, 0.8, 0.8, 0.7, 1.5),
+        Run(2, 1, 6, 0.9, 0.8, 0.7, 1.5),
+        Run(2, 2, 2, 0.8, 0.8, 0.7, 1.5),
+    ]
+    lines = bench.summary(runs)
+    assert lines[0].startswith("jitter seed 1: IDSW 3 1 = 4 (1.33/min); F1 0.8500")
+    assert lines[1].startswith("jitter seed 2: IDSW 6 2 = 8 (2.67/min)")
+    assert lines[2] == "over 2 jitter seeds: IDSW mean 6.0 sd 2.8 (min 4, max 8)"
+    # one jitter seed: the total only; one run: nothing to sum up
+    assert bench.summary(runs[:2]) == ["all: IDSW 3 1 = 4 (1.33/min); F1 0.8500 MOTA 0.8000 IDF1 0.7000"]
+    assert bench.summary(runs[:1]) == []
