@@ -23,8 +23,12 @@ Without colours on both sides (a laser-only rig, someone the camera did not desc
 ``lost_max_gap_s``, is still bridged when both tracklets are long (``lost_min_duration_s``: a person, not
 clutter) and the later one starts near where the earlier one was lost (within
 ``lost_distance + lost_speed · gap``): most people who vanish from a robot's sensors for a few seconds are
-hidden, not gone. Its cost, ``lost_cost`` plus up to 0.5 for the distance, is above any colour or motion link,
-so it only takes what nothing better wants. A wrong guess costs little: without it the person comes back
+hidden, not gone. With colours on both sides that differ too much for a re-identification, the same
+position rule still joins them (whatever their durations) when the colours next to the joint (``app_end``,
+``app_start``) differ by at most ``max_appearance``: a tracklet's colours as a whole are spoiled by a
+stretch on a neighbour, and a few views of someone far away are noisy. The cost of such a link,
+``lost_cost`` plus up to 0.5 for the distance, is above any colour or motion link, so it only takes what
+nothing better wants. A wrong guess costs little: without it the person comes back
 under a new id, which the evaluator counts as a switch as well.
 
 Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
@@ -234,13 +238,25 @@ def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float
     if np.hypot(*(b.x_start[:2] - a.x_end[:2])) > cfg.max_speed * gap + 1.0:
         return None
     d = appearance_distance(a.app, b.app)  # type: ignore[arg-type]
-    return None if d > cfg.reid_max_appearance else 1.0 + d / cfg.reid_max_appearance
+    if d <= cfg.reid_max_appearance:
+        return 1.0 + d / cfg.reid_max_appearance
+    # A tracklet's colours as a whole are spoiled when a stretch of it was on a neighbour, and a few
+    # views of someone far away are noisy: one who comes back where they were lost, with the colours
+    # seen at the joint agreeing as a motion link asks, is still found again (the camera saw a person on
+    # both sides, so no clutter guard on the durations)
+    if appearance_distance(a.app_end, b.app_start) <= cfg.max_appearance:  # type: ignore[arg-type]
+        return _lost_cost(a, b, gap, cfg, min_duration_s=0.0)
+    return None
 
 
-def _lost_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float | None:
-    """Cost of B continuing A across a long gap without colours on both sides, or None."""
+def _lost_cost(
+    a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig, *, min_duration_s: float | None = None
+) -> float | None:
+    """Cost of B continuing A across a long gap by where A was lost, or None: both tracklets span
+    ``min_duration_s`` (default ``lost_min_duration_s``)."""
     shortest_s = min(a.end_ns - a.start_ns, b.end_ns - b.start_ns) * 1e-9
-    if gap > cfg.lost_max_gap_s or shortest_s < cfg.lost_min_duration_s:
+    shortest_allowed = cfg.lost_min_duration_s if min_duration_s is None else min_duration_s
+    if gap > cfg.lost_max_gap_s or shortest_s < shortest_allowed:
         return None
     limit = cfg.lost_distance + cfg.lost_speed * gap
     d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))

@@ -119,6 +119,22 @@ def test_someone_hidden_for_long_is_found_again_near_where_they_were_lost():
     assert stitch_links([red, back]) == [(0, 1)]
 
 
+def test_someone_found_again_where_they_were_lost_though_their_whole_colours_differ():
+    # A stands 9 m away; for part of it a neighbour's colours got in, so A's colours as a whole are 15 ΔE
+    # from B's, too much for a re-identification. Its colours at the end agree with B's at the start, and
+    # B starts 0.3 m from where A was lost, 3.5 s later (beyond max_gap_s): the same person
+    still = (0.0, 0.0)
+    spoiled = RED + np.array([0, 0, 0, 0, 15, 0], np.float32)
+    a = replace(tl(0, 0.0, 10.0, (9.0, 0.0), (9.0, 0.0), v=still, app=RED), app=spoiled, n_app=3)
+    b = replace(tl(1, 13.5, 14.0, (9.0, 0.3), (9.0, 0.3), v=still, app=RED), n_app=3)  # 0.5 s: short
+    assert stitch_links([a, b]) == [(0, 1)]
+    # not where A was lost, not with other colours at the joint, not after more than lost_max_gap_s
+    assert stitch_links([a, replace(b, x_start=np.array([12.0, 0.3, 0.0, 0.0]))]) == []
+    other = RED + np.array([0, 0, 0, 0, 30, 0], np.float32)
+    assert stitch_links([a, replace(b, app=other, app_start=other, app_end=other)]) == []
+    assert stitch_links([a, b], config=StitchConfig(lost_max_gap_s=3.0)) == []
+
+
 def test_two_people_are_not_joined_through_a_laser_tracklet():
     # red ends, a colourless laser tracklet bridges the gap by motion, blue starts where it ends: the laser
     # tracklet may continue one of them, but red and blue stay two people
