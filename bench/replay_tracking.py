@@ -42,7 +42,6 @@ jitter seeds, the noise then is the same for both. The recordings are those of `
 from __future__ import annotations
 
 import argparse
-import itertools
 import pickle
 import time
 from collections import Counter
@@ -63,8 +62,9 @@ from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, perceive, track_all
 from studio.pipeline.perceive import detect_again, off_people
 from studio.track.appearance import appearance_distance, median_appearance
-from studio.track.models import cv_matrix, white_accel_q
+from studio.track.models import cv_matrix
 from studio.track.offline import track_offline, tracks_from_hits
+from studio.track.smooth import filter_track
 
 ORACLE_GATE_M = 0.5  # --oracle: an observation farther than this from every person is nobody's
 
@@ -185,11 +185,11 @@ class Run:
 def summary(runs: list[Run]) -> list[str]:
     """Lines that sum the runs up: per jitter seed the switches over all recordings (per seed, total, per
     minute) and mean F1 / MOTA / IDF1; with several jitter seeds, the mean and spread of those totals."""
+    if len(runs) < 2:
+        return []
     by_jitter: dict[int, list[Run]] = {}
     for r in runs:
         by_jitter.setdefault(r.jitter_seed, []).append(r)
-    if len(runs) < 2:
-        return []
     lines, totals = [], []
     for j, rs in by_jitter.items():
         n, minutes = sum(r.switches for r in rs), sum(r.minutes for r in rs)
@@ -237,21 +237,17 @@ def association_likelihood(
     module docstring) and how many described observations it sums over."""
     nll, spread, n_described = 0.0, 0.0, 0
     for hits in tracks.values():
-        i0, r0 = hits[0]
-        x = np.r_[obs[i0].xy[r0], 0.0, 0.0]
-        P = np.zeros((4, 4))
-        P[:2, :2] = obs[i0].cov[r0]
-        P[2:, 2:] = init_speed_sigma**2 * np.eye(2)
-        for (a, _), (i, r) in itertools.pairwise(hits):
-            dt = (obs[i].stamp_ns - obs[a].stamp_ns) * 1e-9
-            F = cv_matrix(dt)
-            x, P = F @ x, F @ P @ F.T + white_accel_q(dt, accel_sigma)
-            S = P[:2, :2] + obs[i].cov[r]
-            y = obs[i].xy[r] - x[:2]
-            Si = np.linalg.inv(S)
-            nll += 0.5 * float(y @ Si @ y + np.log(np.linalg.det(S)) + 2.0 * np.log(2.0 * np.pi))
-            K = P[:, :2] @ Si
-            x, P = x + K @ y, P - K @ P[:2, :]
+        z = np.array([obs[i].xy[r] for i, r in hits])
+        R = np.array([obs[i].cov[r] for i, r in hits])
+        stamps = np.array([obs[i].stamp_ns for i, _ in hits], dtype=np.int64)
+        run = filter_track(stamps, z, R, accel_sigma=accel_sigma, init_speed_sigma=init_speed_sigma)
+        for k in range(1, len(hits)):  # each observation against the filter's prediction from the one before
+            F = cv_matrix(run.dt[k])
+            x, P = F @ run.x[k - 1], F @ run.P[k - 1] @ F.T + run.Q[k]
+            S = P[:2, :2] + R[k]
+            y = z[k] - x[:2]
+            mahalanobis = float(y @ np.linalg.solve(S, y))
+            nll += 0.5 * (mahalanobis + float(np.log(np.linalg.det(S))) + 2.0 * np.log(2.0 * np.pi))
         colours = [
             obs[i].appearance[r]
             for i, r in hits
