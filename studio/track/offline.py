@@ -4,12 +4,13 @@
    which track in which frame), including the hits a track had while still tentative.
 2. Tracks that were never confirmed are dropped; the others are cut where they went unobserved for longer
    than ``split_gap_s`` (a coasting track's wide gate may have caught clutter), pieces with too few hits are
-   dropped; where two tracklets came close and their clothing colours say they came out of the encounter
-   the other way round, their tails are exchanged (:mod:`studio.track.swaps`); the tracklets are filtered
-   and RTS-smoothed on their own and then **stitched** across gaps (:mod:`studio.track.stitch`: motion +
-   appearance, solved globally); a continuation takes the id of the tracklet it continues, and one that
-   started before the tracklet it continues ended (its tail had left the person), or that continues it
-   from an observation shortly before its last one, replaces that tail.
+   dropped, and cut where their clothing colours change for good (:mod:`studio.track.colour_cuts`: the
+   track went on with someone else); where two tracklets came close and their clothing colours say they
+   came out of the encounter the other way round, their tails are exchanged (:mod:`studio.track.swaps`);
+   the tracklets are filtered and RTS-smoothed on their own and then **stitched** across gaps
+   (:mod:`studio.track.stitch`: motion + appearance, solved globally); a continuation takes the id of the
+   tracklet it continues, and one that started before the tracklet it continues ended (its tail had left
+   the person), or that continues it from an observation shortly before its last one, replaces that tail.
    Where two stitched tracks come close, the detections they held there are distributed between them
    again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
@@ -35,6 +36,7 @@ from numpy.typing import NDArray
 
 from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
+from studio.track.colour_cuts import ColourCutConfig, cut_colour_changes
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, stitch_links
@@ -53,6 +55,9 @@ class OfflineConfig:
     Attributes:
         tracker: options of the online pass (``report_tentative`` is forced on). Its ``max_coast_s`` can be
             short: stitching bridges longer gaps with more information than the online tracker has.
+        colour_cuts: options of the cuts where a tracklet's clothing colours change for good (it went on
+            with someone else, :mod:`studio.track.colour_cuts`), made before the swap repair and stitching,
+            or None to skip them.
         stitch: stitching options, or None to skip stitching.
         swaps: options of the identity-swap repair between tracklets that came close
             (:mod:`studio.track.swaps`), run on the tracklets and again on the stitched tracks, or None to
@@ -81,6 +86,7 @@ class OfflineConfig:
     """
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
+    colour_cuts: ColourCutConfig | None = field(default_factory=ColourCutConfig)
     stitch: StitchConfig | None = field(default_factory=StitchConfig)
     swaps: SwapConfig | None = field(default_factory=SwapConfig)
     encounters: EncounterConfig | None = field(default_factory=EncounterConfig)
@@ -301,6 +307,8 @@ def track_offline(
     cfg = config or OfflineConfig()
     obs = list(observations)
     tracklets = _online_pass(obs, cfg)
+    if cfg.colour_cuts is not None:
+        tracklets, _ = cut_colour_changes(obs, tracklets, cfg.colour_cuts)
     if cfg.swaps is not None:
         tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
     cache: _Cache = {}
