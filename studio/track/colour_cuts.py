@@ -18,8 +18,8 @@ and the first one after; each piece is searched again.
 
 Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.md, session 27):
 ``moving`` seeds 1–12 35 → 28 identity switches (under five seeds of 5 mm noise 216 → 175 in all), IDF1
-0.90 → 0.94, F1 unchanged; ``rooms`` seed 1 17 → 10; ``static`` seeds 1–6 (the robot still) 31 → 40
-under three noise seeds, worse where three people stand 0.4 m apart.
+0.90 → 0.94, F1 unchanged; ``rooms`` seed 1 about the same (61 → 58 under five noise seeds); ``static``
+seeds 1–6 (the robot still) 31 → 40 under three noise seeds, worse where three people stand 0.4 m apart.
 """
 
 from __future__ import annotations
