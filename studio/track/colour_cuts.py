@@ -32,11 +32,9 @@ from numpy.typing import NDArray
 
 from studio.track.appearance import appearance_matrix
 from studio.track.base import Observations
+from studio.track.swaps import Hits
 
 __all__ = ["ColourCutConfig", "colour_change", "cut_colour_changes"]
-
-# A track's hits: (frame index, row in that frame's Observations), in frame order.
-Hits = list[tuple[int, int]]
 
 
 @dataclass(frozen=True)
