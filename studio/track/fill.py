@@ -67,8 +67,8 @@ class GapFillConfig:
     appearance_views: int = 5
 
     def __post_init__(self) -> None:
-        if self.radius <= 0 or self.max_gap_s <= 0 or self.max_speed <= 0 or self.max_appearance <= 0:
-            raise ValueError("radius, max_gap_s, max_speed and max_appearance must be positive")
+        if min(self.radius, self.clearance, self.max_gap_s, self.max_speed, self.max_appearance) <= 0:
+            raise ValueError("radius, clearance, max_gap_s, max_speed and max_appearance must be positive")
         if self.appearance_views < 1:
             raise ValueError("appearance_views must be at least 1")
 

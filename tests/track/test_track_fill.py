@@ -111,6 +111,8 @@ def test_a_gap_too_fast_or_too_long_is_not_searched():
 def test_config_is_checked():
     with pytest.raises(ValueError, match="positive"):
         GapFillConfig(radius=0)
+    with pytest.raises(ValueError, match="positive"):
+        GapFillConfig(clearance=-1.0)
     with pytest.raises(ValueError, match="appearance_views"):
         GapFillConfig(appearance_views=0)
 
