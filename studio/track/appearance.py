@@ -150,6 +150,13 @@ def appearance_matrix(A: ArrayLike, B: ArrayLike) -> FloatArray:
     return d.max(axis=-1)
 
 
+def appearance_rows(A: ArrayLike, B: ArrayLike) -> FloatArray:
+    """:func:`appearance_distance` of (M, 6) and (M, 6) descriptors row by row → (M,)."""
+    a = np.asarray(A, dtype=np.float64).reshape(-1, 2, 3) * _W
+    b = np.asarray(B, dtype=np.float64).reshape(-1, 2, 3) * _W
+    return np.linalg.norm(a - b, axis=-1).max(axis=-1)
+
+
 def appearance_distance(a: ArrayLike, b: ArrayLike) -> float:
     """Colour difference of two people: the larger of the torso and legs ΔE (L* weighted), ≥ 0."""
     return float(appearance_matrix(a, b)[0, 0])

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from studio.track import Observations
+from studio.track.appearance import appearance_matrix
 from studio.track.colour_cuts import ColourCutConfig, colour_change, cut_colour_changes
 from studio.track.offline import OfflineConfig, track_offline
 from studio.track.ukf import UkfTrackerConfig
@@ -104,3 +105,49 @@ def test_bad_options_are_refused():
         ColourCutConfig(min_change=0.0)
     with pytest.raises(ValueError, match="positive"):
         ColourCutConfig(views=0)
+
+
+def _change_by_brute_force(colours, cfg):
+    """The definition, split by split with numpy's medians: the split of largest change that passes."""
+    best = None
+    for m in range(cfg.views, len(colours) - cfg.views + 1):
+        before, after = colours[:m], colours[m:]
+        meds = np.stack([np.median(before, axis=0), np.median(after, axis=0)])
+        change = appearance_matrix(meds[:1], meds[1:])[0, 0]
+        if change < cfg.min_change or (best is not None and change <= best[0]):
+            continue
+        d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
+        if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
+            continue
+        end, start = d_b[-cfg.views :], d_a[: cfg.views]
+        if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
+            continue
+        best = (change, m)
+    return None if best is None else best[1]
+
+
+def test_the_change_point_is_the_definitions_on_random_sequences():
+    rng = np.random.default_rng(3)
+    C = A + np.array([0.0, 0.0, 25.0, 0.0, 10.0, 0.0])
+    found = 0
+    for _ in range(150):
+        runs = [
+            ([A, B, C][rng.integers(3)], int(rng.integers(1, 30)), float(rng.choice([1.0, 3.0, 8.0])))
+            for _ in range(rng.integers(1, 4))
+        ]
+        colours = np.concatenate([c + rng.normal(0, s, (n, 6)) for c, n, s in runs])
+        colours = np.round(colours, int(rng.integers(0, 3)))  # rounding makes ties between splits
+        cfg = ColourCutConfig(min_change=float(rng.choice([8.0, 15.0])), views=int(rng.choice([3, 5])))
+        expected = _change_by_brute_force(colours, cfg)
+        assert colour_change(colours, cfg) == expected
+        found += expected is not None
+    assert 20 < found < 130  # both outcomes were exercised
+
+
+def test_running_medians_are_numpys():
+    from studio.track.colour_cuts import _running_medians
+
+    x = np.round(np.random.default_rng(4).normal(0, 5, (41, 6)), 0)  # ties and even lengths
+    got = _running_medians(x)
+    for m in range(1, 42):
+        np.testing.assert_array_equal(got[m - 1], np.median(x[:m], axis=0))
