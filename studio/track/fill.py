@@ -77,16 +77,13 @@ def _paths(obs: Sequence[Observations], tracks: dict[int, Hits]) -> dict[int, di
     """Per frame: each track's position there, from its hit or the straight line between the hits around."""
     out: dict[int, dict[int, FloatArray]] = {}
     for tid, h in tracks.items():
-        for (a, ra), (b, rb) in itertools.pairwise(h):
-            out.setdefault(a, {})[tid] = obs[a].xy[ra]
-            if b > a + 1:
-                ta, tb = obs[a].stamp_ns, obs[b].stamp_ns
-                for i in range(a + 1, b):
-                    w = (obs[i].stamp_ns - ta) / max(tb - ta, 1)
-                    out.setdefault(i, {})[tid] = (1 - w) * obs[a].xy[ra] + w * obs[b].xy[rb]
-        if h:
-            i, r = h[-1]
+        for i, r in h:
             out.setdefault(i, {})[tid] = obs[i].xy[r]
+        for (a, ra), (b, rb) in itertools.pairwise(h):
+            ta, tb = obs[a].stamp_ns, obs[b].stamp_ns
+            for i in range(a + 1, b):
+                w = (obs[i].stamp_ns - ta) / max(tb - ta, 1)
+                out.setdefault(i, {})[tid] = (1 - w) * obs[a].xy[ra] + w * obs[b].xy[rb]
     return out
 
 
