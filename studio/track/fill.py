@@ -38,7 +38,7 @@ from studio.track.appearance import appearance_distance, median_appearance
 from studio.track.base import Observations
 from studio.track.swaps import Hits
 
-__all__ = ["GapFillConfig", "fill_gaps"]
+__all__ = ["GapFillConfig", "fill_gaps", "track_paths"]
 
 FloatArray = NDArray[np.float64]
 
@@ -73,7 +73,7 @@ class GapFillConfig:
             raise ValueError("appearance_views must be at least 1")
 
 
-def _paths(obs: Sequence[Observations], tracks: dict[int, Hits]) -> dict[int, dict[int, FloatArray]]:
+def track_paths(obs: Sequence[Observations], tracks: dict[int, Hits]) -> dict[int, dict[int, FloatArray]]:
     """Per frame: each track's position there, from its hit or the straight line between the hits around."""
     out: dict[int, dict[int, FloatArray]] = {}
     for tid, h in tracks.items():
@@ -111,7 +111,7 @@ def fill_gaps(
     """
     cfg = config or GapFillConfig()
     taken = {(i, r) for h in tracks.values() for i, r in h}
-    paths = _paths(obs, tracks)
+    paths = track_paths(obs, tracks)
     out: dict[int, Hits] = {}
     added = 0
     for tid, h in tracks.items():

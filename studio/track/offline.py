@@ -15,9 +15,11 @@
    again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
    had too few described observations on one side for it to judge, its stitched track has enough.
-   Last, each track's gaps take the observations no track holds that lie on its way through them
-   (:mod:`studio.track.fill`): a lone detection the online pass could not confirm splits a long gap into
-   pieces short enough to interpolate.
+   Then a track's short excursions onto someone else's way (a few observations off its line that lie
+   closer to another track) are taken from it (:mod:`studio.track.excursions`), and last, each track's
+   gaps take the observations no track holds that lie on its way through them (:mod:`studio.track.fill`):
+   a lone detection the online pass could not confirm splits a long gap into pieces short enough to
+   interpolate.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions. An
    observation that another track, unobserved in that frame, passes close by was probably one detection of
@@ -41,6 +43,7 @@ from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.colour_cuts import ColourCutConfig, cut_colour_changes
 from studio.track.encounters import EncounterConfig, reassign_encounters
+from studio.track.excursions import ExcursionConfig, detach_excursions
 from studio.track.fill import GapFillConfig, fill_gaps
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, stitch_links
@@ -68,6 +71,8 @@ class OfflineConfig:
             skip it.
         encounters: options of the re-decision of encounters between stitched tracks by their motion
             (:mod:`studio.track.encounters`), or None to skip it.
+        excursions: options of taking from the final tracks the short runs of observations that lie on
+            another track's way (:mod:`studio.track.excursions`), or None to skip it.
         gap_fill: options of giving the tracks' gaps the observations no track holds that lie on their way
             (:mod:`studio.track.fill`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
@@ -96,6 +101,7 @@ class OfflineConfig:
     stitch: StitchConfig | None = field(default_factory=StitchConfig)
     swaps: SwapConfig | None = field(default_factory=SwapConfig)
     encounters: EncounterConfig | None = field(default_factory=EncounterConfig)
+    excursions: ExcursionConfig | None = field(default_factory=ExcursionConfig)
     gap_fill: GapFillConfig | None = field(default_factory=GapFillConfig)
     smooth: bool = True
     interpolate_max_gap_s: float = 3.0
@@ -346,6 +352,8 @@ def track_offline(
         )
     if cfg.swaps is not None and len(merged) > 1:
         merged, _ = repair_swaps(obs, merged, cfg.swaps)
+    if cfg.excursions is not None:
+        merged, _ = detach_excursions(obs, merged, cfg.excursions)
     if cfg.gap_fill is not None:
         merged, _ = fill_gaps(obs, merged, cfg.gap_fill)
     return _output(obs, merged, cfg, cache)

@@ -1,0 +1,95 @@
+"""Excursions: a few observations a track held on someone else's way are taken from it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studio.track import Observations
+from studio.track.excursions import ExcursionConfig, detach_excursions
+from studio.track.offline import OfflineConfig
+
+T0 = 1_700_000_000_000_000_000
+DT = 100_000_000  # 10 Hz
+
+
+def _frames(rows_per_frame):
+    out = []
+    for i, rows in enumerate(rows_per_frame):
+        xy = np.asarray(rows, float).reshape(-1, 2)
+        n = len(xy)
+        out.append(
+            Observations(
+                T0 + i * DT,
+                xy,
+                np.repeat(np.eye(2)[None] * 0.0025, n, 0),
+                ("laser",) * n,
+                np.ones(n),
+                np.full((n, 6), np.nan, np.float32),
+                np.arange(n),
+                None,
+            )
+        )
+    return out
+
+
+def _walker_and_stander(n=30, grab=(14, 15), stander_seen=True):
+    """Row 0: someone walking along y = 0 at 1 m/s; row 1: someone standing at (1.8, 0.45). Track 1 (the
+    walker's) holds row 0 except in the frames ``grab``, where it holds the stander's row 1."""
+    rows = []
+    for i in range(n):
+        walker = [0.4 + 0.1 * i, 0.0]
+        rows.append([walker, [1.8, 0.45]] if stander_seen or i in grab else [walker])
+    obs = _frames(rows)
+    walker_hits = [(i, 1 if i in grab else 0) for i in range(n)]
+    stander_hits = [(i, 1) for i in range(n) if i not in grab and stander_seen]
+    return obs, {1: walker_hits, 2: stander_hits}
+
+
+def test_a_short_run_on_someone_elses_way_is_taken():
+    obs, tracks = _walker_and_stander()
+    out, n = detach_excursions(obs, tracks)
+    assert n == 2
+    assert (14, 1) not in out[1]
+    assert (15, 1) not in out[1]
+    assert len(out[1]) == 28
+    assert out[2] == tracks[2]
+    assert len(tracks[1]) == 30  # the input is not modified
+
+
+def test_a_hit_off_the_line_with_nobody_near_stays():
+    # a turn or the detector's error
+    obs, tracks = _walker_and_stander(grab=(14,), stander_seen=False)
+    _, n = detach_excursions(obs, {1: tracks[1]})
+    assert n == 0
+
+
+def test_a_run_longer_than_max_hits_is_not_taken():
+    obs, tracks = _walker_and_stander(grab=tuple(range(10, 20)))
+    out, _ = detach_excursions(obs, tracks)
+    # its ends may go (each is off the line from the walker to the stander), its middle stays
+    assert all((i, 1) in out[1] for i in range(12, 18))
+
+
+def test_a_hit_close_to_the_line_stays():
+    obs, tracks = _walker_and_stander()
+    # the deviation threshold above the stander's 0.45 m offset: nothing is off the line by that much
+    _, n = detach_excursions(obs, tracks, ExcursionConfig(deviation=0.5))
+    assert n == 0
+
+
+def test_a_span_longer_than_max_s_stays():
+    obs, tracks = _walker_and_stander()
+    _, n = detach_excursions(obs, tracks, ExcursionConfig(max_s=0.2))
+    assert n == 0
+
+
+def test_offline_config_can_skip_it():
+    assert OfflineConfig().excursions == ExcursionConfig()
+    assert OfflineConfig(excursions=None).excursions is None
+
+
+@pytest.mark.parametrize("kw", [{"deviation": 0.0}, {"max_hits": 0}, {"max_s": -1.0}])
+def test_bad_config(kw):
+    with pytest.raises(ValueError, match="must be"):
+        ExcursionConfig(**kw)
