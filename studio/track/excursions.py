@@ -80,9 +80,11 @@ def detach_excursions(
         if len(h) >= 3:
             xy = np.array([obs[i].xy[r] for i, r in h], dtype=np.float64)
             t = np.array([obs[i].stamp_ns for i, _ in h], dtype=np.int64)
+            # each hit's distance to the nearest other track in its frame (inf: nobody else there)
+            near = np.array([_nearest_other(xy[m], h[m][0], tid, paths) for m in range(len(h))])
             k = 1
             while k < len(h) - 1:
-                end = _excursion_end(h, xy, t, k, tid, paths, cfg)
+                end = _excursion_end(xy, t, near, k, cfg) if np.isfinite(near[k]) else None
                 if end is None:
                     k += 1
                 else:
@@ -94,31 +96,28 @@ def detach_excursions(
 
 
 def _excursion_end(
-    h: Hits,
-    xy: np.ndarray,
-    t: np.ndarray,
-    k: int,
-    tid: int,
-    paths: dict[int, dict[int, np.ndarray]],
-    cfg: ExcursionConfig,
+    xy: np.ndarray, t: np.ndarray, near: np.ndarray, k: int, cfg: ExcursionConfig
 ) -> int | None:
-    """The index of the hit after the shortest excursion that starts at hit ``k``, or None."""
-    for j in range(k + 1, min(k + cfg.max_hits, len(h) - 1) + 1):
-        span = float(t[j] - t[k - 1])
-        if span > cfg.max_s * 1e9:
-            return None
-        w = (t[k:j] - t[k - 1]) / max(span, 1.0)
-        line = (1.0 - w)[:, None] * xy[k - 1] + w[:, None] * xy[j]
-        off = np.hypot(*(xy[k:j] - line).T)
-        if np.any(off <= cfg.deviation):
-            continue
-        if all(_closer_to_another(xy[m], h[m][0], tid, paths, float(off[m - k])) for m in range(k, j)):
-            return j
-    return None
+    """The index of the hit after the shortest excursion that starts at hit ``k`` (hits ``k`` to that index
+    minus one), or None; ``near``: each hit's distance to the nearest other track."""
+    js = np.arange(k + 1, min(k + cfg.max_hits, len(xy) - 1) + 1)
+    # a run may not span more than max_s, nor hold a hit with nobody else near (longer runs would too)
+    ok = (t[js] - t[k - 1] <= cfg.max_s * 1e9) & np.isfinite(near[js - 1])
+    js = js[: int(np.argmin(ok)) if not ok.all() else len(js)]
+    if not len(js):
+        return None
+    ms = np.arange(k, js[-1])  # every hit a run may hold
+    span = np.maximum((t[js] - t[k - 1]).astype(np.float64), 1.0)
+    w = (t[ms] - t[k - 1])[None, :] / span[:, None]  # (runs, hits)
+    line = (1.0 - w)[..., None] * xy[k - 1] + w[..., None] * xy[js][:, None, :]
+    off = np.hypot(*np.moveaxis(xy[ms][None] - line, -1, 0))
+    inside = ms[None, :] < js[:, None]  # hit m is in the run that ends before hit j
+    good = (off > cfg.deviation) & (near[ms][None, :] < off)
+    runs = np.all(good | ~inside, axis=1)
+    return int(js[np.argmax(runs)]) if runs.any() else None
 
 
-def _closer_to_another(
-    p: np.ndarray, frame: int, tid: int, paths: dict[int, dict[int, np.ndarray]], limit: float
-) -> bool:
-    """Whether another track's position in ``frame`` lies within ``limit`` of ``p``."""
-    return any(o != tid and float(np.hypot(*(p - q))) < limit for o, q in paths.get(frame, {}).items())
+def _nearest_other(p: np.ndarray, frame: int, tid: int, paths: dict[int, dict[int, np.ndarray]]) -> float:
+    """Distance from ``p`` to the nearest other track's position in ``frame`` (inf when there is none)."""
+    d = [float(np.hypot(*(p - q))) for o, q in paths.get(frame, {}).items() if o != tid]
+    return min(d, default=float("inf"))
