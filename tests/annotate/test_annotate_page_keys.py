@@ -74,7 +74,10 @@ def test_keyboard_flow_without_recording(moved_server: str) -> None:
             page.keyboard.press("Shift+ArrowRight")
             expect(page.locator("#frameno")).to_have_value("21")
             n_people = len(_call(url, "/api/frame/21")["gt"])
+            # the frame number shows at once, its people once fetched: click on frame 21's view, not 11's
+            page.wait_for_function("() => S.data !== null && S.data.frame === 21")
             page.keyboard.press("n")
+            page.wait_for_function("() => S.addMode === true")
             box = page.locator("#bev").bounding_box()
             assert box is not None
             page.mouse.click(box["x"] + box["width"] * 0.2, box["y"] + box["height"] * 0.2)
