@@ -414,7 +414,7 @@ function setupBev() {
   const c = $("bev");
   const pos = (e) => { const r = c.getBoundingClientRect(); return [e.clientX - r.left, e.clientY - r.top]; };
   c.addEventListener("mousedown", (e) => {
-    if (!S.data) return;
+    if (!S.data || S.data.frame !== frameNo()) return; // the frame's people are still being fetched
     const [sx, sy] = pos(e);
     const { toScreen, toWorld } = bevGeom();
     const p = hitGt(sx, sy, toScreen);
@@ -448,7 +448,7 @@ function setupBev() {
 function setupPano() {
   const c = $("pano-overlay");
   c.addEventListener("mousedown", (e) => {
-    if (!S.data) return;
+    if (!S.data || S.data.frame !== frameNo()) return; // the frame's people are still being fetched
     const r = c.getBoundingClientRect();
     const k = r.width / (S.meta.image_size ? S.meta.image_size[0] : r.width);
     let best = null, bd = 20;
