@@ -20,7 +20,8 @@ Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.
 ``moving`` seeds 1–12 identity switches 23 → 20 unperturbed and 147 → 131 under five seeds of 5 mm noise,
 F1 unchanged (0.9611); ``static`` seeds 1–6 under three noise seeds 40 → 28, F1 0.963 → 0.966; ``rooms``
 seed 1 F1 0.9526 → 0.9555, switches 62 → 67 over five noise seeds (one more on each: a person found again
-after a long gap who was not labelled there before); laser only 93 → 96.
+after a long gap who was not labelled there before); laser only 93 → 96 unperturbed, 94 → 94 on
+average under two noise seeds.
 """
 
 from __future__ import annotations
