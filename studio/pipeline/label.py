@@ -44,6 +44,7 @@ _BODY_HIT_SHARE = 0.8  # a base-frame cell hit by this share of one scanner's sc
 _BODY_MIN_SCANS = 20  # ... judged once that scanner has this many scans in its map
 _SEGMENT_SHARE = 0.7  # a detection is on structure / the body when this share of its points is
 _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
+_CAMERA_SEEN_M = 0.3  # a camera observation no track took vouches for a track this near (camera gate)
 _CAMERA_TAIL_BACK_S = 1.0  # with a camera, stitching's take-over looks back this far (see tracking_config)
 _PAIR_ON_STRUCTURE, _PAIR_SPREAD = 0.2, 0.35  # a leg pair with this share of its points on structure, ...
 # ... that far (m) from its other points, paired a leg with a chair leg or a corner
@@ -378,15 +379,25 @@ def track_all(
     sources: dict[int, Counter[str]] = {}
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         how = fr.observations.how
+        ob = observations[fr_i]
+        # camera observations no track took: the camera saw someone there, whoever the tracks say it is
+        taken = {p.det_index for p in tf.points}
+        seen = np.array(
+            [ob.xy[k] for k in range(len(ob.source)) if ob.source[k] in ("fused", "image") and k not in taken]
+        ).reshape(-1, 2)
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
+            camera = False
             if p.det_index >= 0:
-                src = observations[fr_i].source[p.det_index]
+                src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
                 # a laser person beside someone a box took, in that box: the camera saw someone there too
                 beside = p.det_index < len(how) and how[p.det_index] == "beside-box"
-                if src in ("fused", "image") or beside:
-                    camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
+                camera = src in ("fused", "image") or beside
+            if not camera and len(seen):
+                camera = bool(np.min(np.hypot(*(seen - p.xy).T)) <= _CAMERA_SEEN_M)
+            if camera:
+                camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
     camera_gate = has_camera and options.sources == "both"
     keep = set()
     for tid, stamps in span.items():
