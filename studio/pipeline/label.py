@@ -377,14 +377,15 @@ def track_all(
     camera_hits: dict[int, list[int]] = {}
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
+    camera_gate = has_camera and options.sources == "both"
+    by_camera = ("fused", "image")
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         how = fr.observations.how
         ob = observations[fr_i]
         # camera observations no track took: the camera saw someone there, whoever the tracks say it is
         taken = {p.det_index for p in tf.points}
-        seen = np.array(
-            [ob.xy[k] for k in range(len(ob.source)) if ob.source[k] in ("fused", "image") and k not in taken]
-        ).reshape(-1, 2)
+        free = [k for k, src in enumerate(ob.source) if camera_gate and src in by_camera and k not in taken]
+        seen = ob.xy[free].reshape(-1, 2)
         for p in tf.points:
             span.setdefault(p.track_id, []).append(fr.stamp_ns)
             camera = False
@@ -393,12 +394,11 @@ def track_all(
                 sources.setdefault(p.track_id, Counter())[src] += 1
                 # a laser person beside someone a box took, in that box: the camera saw someone there too
                 beside = p.det_index < len(how) and how[p.det_index] == "beside-box"
-                camera = src in ("fused", "image") or beside
+                camera = src in by_camera or beside
             if not camera and len(seen):
                 camera = bool(np.min(np.hypot(*(seen - p.xy).T)) <= _CAMERA_SEEN_M)
             if camera:
                 camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
-    camera_gate = has_camera and options.sources == "both"
     keep = set()
     for tid, stamps in span.items():
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
