@@ -1,12 +1,20 @@
 """Fit the classical laser detector's leg model on the real labelled scans and cross-validate it.
 
     .venv/bin/python bench/laser_sweep.py            # leave-one-bag-out numbers + the fitted LegModel literal
+    .venv/bin/python bench/laser_sweep.py --thin 2 3 # the model for coarse scanners (0.5–1.1° beams)
 
 Positives: segments within 0.15 m of a labelled leg in ``legs_labelled/*`` (automatically extracted labels
 inside a ±15° / 5 m wedge). Negatives: every segment of ``negative_2.bag`` (empty rooms, 3 scanners) and the
 segments of the labelled bags outside an 18° / 5.4 m wedge (people walk only inside the 15° / 5 m wedge).
 Segments inside the wedge without a label are left out. The printed ``LegModel(...)`` goes into
 ``studio/detect/laser/classical.py`` as ``LEG_MODEL``.
+
+These scans have 0.35° beams. A copy with every K-th beam (:func:`thinned`) is what a scanner with K times
+coarser beams sees of the same scene: legs with the returns of legs K times farther away. The held-out
+numbers are also given on copies thinned by 2 and 3 (0.70° and 1.05°: how the model does on a coarser
+scanner, or on legs 2–3 times farther than the labelled ones). ``--thin 2 3`` fits on those copies alone:
+``LEG_MODEL_COARSE``, which the detector uses for scans with beams 0.5° apart or more. ``--far`` adds thinned
+copies to the recorded scans instead (one model for all; tried, not kept: docs/results.md, session 31).
 """
 
 from __future__ import annotations
@@ -19,7 +27,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from laser_data import DATA, labelled_scans, read_scans
+from laser_data import DATA, Scan, labelled_scans, read_scans
 
 from studio.detect.laser.classical import LegModel, leg_basis
 from studio.detect.laser.segment import SegmentParams, segment_features, segment_scan
@@ -40,41 +48,72 @@ def noisy(points: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndar
         return points * ((r + rng.normal(0.0, sigma, len(r))) / r)[:, None]
 
 
-def collect(params: SegmentParams, *, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def thinned(scan: Scan, k: int, phase: int) -> Scan:
+    """Every ``k``-th beam of ``scan`` from ``phase``: the scene as a scanner with ``k`` times coarser beams
+    sees it, so a leg ``r`` metres away gets the returns of a leg ``k r`` metres away (the labelled people
+    walk within 5 m; the thinned copies teach the model legs out to 10–15 m)."""
+    return Scan(
+        scan.topic, scan.stamp_ns, scan.points[phase::k], scan.valid[phase::k], scan.angle_increment * k
+    )
+
+
+def copies_of(
+    scan: Scan, noise: float, far: tuple[int, ...], rng: np.random.Generator
+) -> list[tuple[Scan, str]]:
+    """The scan as recorded, plus the augmented copies ``noise`` (extra range noise, metres) and ``far``
+    (beam thinning factors) ask for, each with its group suffix."""
+    out = [(scan, "")]
+    if noise > 0:
+        out.append(
+            (
+                Scan(
+                    scan.topic,
+                    scan.stamp_ns,
+                    noisy(scan.points, noise, rng),
+                    scan.valid,
+                    scan.angle_increment,
+                ),
+                "+noise",
+            )
+        )
+    out += [(thinned(scan, k, int(rng.integers(k))), f"+far{k}") for k in far]
+    return out
+
+
+def collect(
+    params: SegmentParams, *, noise: float = 0.0, far: tuple[int, ...] = ()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Features ``(S, F)``, labels ``(S,)`` (1 leg, 0 not, −1 unknown) and group names of all segments.
 
-    ``noise`` > 0 adds a second copy of every scan with that much extra Gaussian range noise (metres), so the
-    model also learns legs and clutter from scanners noisier than the one that recorded these bags; its
-    groups carry a ``+noise`` suffix.
+    ``noise`` > 0 adds a copy of every scan with that much extra Gaussian range noise (metres), so the model
+    also learns legs and clutter from scanners noisier than the one that recorded these bags; ``far`` adds a
+    copy thinned by each factor (:func:`thinned`), legs and clutter as seen from farther away. Their groups
+    carry a ``+noise`` / ``+farK`` suffix.
     """
     feats, ys, groups = [], [], []
     rng = np.random.default_rng(0)
-    copies = [(0.0, "")] + ([(noise, "+noise")] if noise > 0 else [])
     for bag in sorted((DATA / "legs_labelled").glob("*.bag")):
-        for (scan0, legs), (sig, tag) in ((x, c) for x in labelled_scans(bag) for c in copies):
-            scan = scan0 if sig == 0 else type(scan0)(
-                scan0.topic, scan0.stamp_ns, noisy(scan0.points, sig, rng), scan0.valid, scan0.angle_increment
-            )  # fmt: skip
-            segs = segment_scan(scan.points, scan.valid, params=params)
-            if not segs:
-                continue
-            f = segment_features(scan.points, segs, scan.valid)
-            c = np.array([scan.points[s].mean(0) for s in segs])
-            d = np.full(len(segs), np.inf)
-            if len(legs):
-                d = np.hypot(*(c[:, None, :] - legs[None, :, :]).transpose(2, 0, 1)).min(1)
-            y = np.where(d < MATCH_RADIUS, 1, np.where(in_wedge(c, deg=18.0, rmax=5.4), -1, 0))
-            feats.append(f)
-            ys.append(y)
-            groups += [bag.name.split("_extracted")[0] + tag] * len(segs)
+        for scan0, legs in labelled_scans(bag):
+            for scan, tag in copies_of(scan0, noise, far, rng):
+                segs = segment_scan(scan.points, scan.valid, params=params)
+                if not segs:
+                    continue
+                f = segment_features(scan.points, segs, scan.valid)
+                c = np.array([scan.points[s].mean(0) for s in segs])
+                d = np.full(len(segs), np.inf)
+                if len(legs):
+                    d = np.hypot(*(c[:, None, :] - legs[None, :, :]).transpose(2, 0, 1)).min(1)
+                y = np.where(d < MATCH_RADIUS, 1, np.where(in_wedge(c, deg=18.0, rmax=5.4), -1, 0))
+                feats.append(f)
+                ys.append(y)
+                groups += [bag.name.split("_extracted")[0] + tag] * len(segs)
     for scan0 in read_scans(DATA / "negative_2.bag"):
-        for sig, tag in copies:
-            pts = scan0.points if sig == 0 else noisy(scan0.points, sig, rng)
-            segs = segment_scan(pts, scan0.valid, params=params)
+        for scan, tag in copies_of(scan0, noise, far, rng):
+            segs = segment_scan(scan.points, scan.valid, params=params)
             if segs:
-                feats.append(segment_features(pts, segs, scan0.valid))
+                feats.append(segment_features(scan.points, segs, scan.valid))
                 ys.append(np.zeros(len(segs), dtype=int))
-                groups += ["negative_2" + scan0.topic + tag] * len(segs)
+                groups += ["negative_2" + scan.topic + tag] * len(segs)
     return np.concatenate(feats), np.concatenate(ys), np.array(groups)
 
 
@@ -97,15 +136,15 @@ def fit(features: np.ndarray, y: np.ndarray, *, l2: float = 1e-3) -> LegModel:
     return LegModel(mean=r(mu), std=r(sd), coef=r(b[:-1]), bias=round(float(b[-1]), 6))
 
 
-def literal(model: LegModel) -> str:
-    """The model as the Python source committed in classical.py."""
+def literal(model: LegModel, name: str = "LEG_MODEL") -> str:
+    """The model as the Python source committed in classical.py, bound to ``name``."""
 
     def block(name: str, values: tuple[float, ...]) -> str:
         rows = [", ".join(repr(v) for v in values[i : i + 9]) for i in range(0, len(values), 9)]
         return f"    {name}=(\n" + "".join(f"        {r},\n" for r in rows) + "    ),\n"
 
     return (
-        "# fmt: off\nLEG_MODEL = LegModel(\n"
+        f"# fmt: off\n{name} = LegModel(\n"
         + block("mean", model.mean)
         + block("std", model.std)
         + block("coef", model.coef)
@@ -113,38 +152,59 @@ def literal(model: LegModel) -> str:
     )
 
 
+REPORT_FAR = (2, 3)  # thinned copies the held-out numbers are also given on, trained on or not
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--l2", type=float, default=1e-3)
     ap.add_argument("--jump-min", type=float, default=SegmentParams.jump_min)
     ap.add_argument("--jump-beams", type=float, default=SegmentParams.jump_beams)
+    ap.add_argument("--min-points", type=int, default=SegmentParams.min_points)
     ap.add_argument("--noise", type=float, default=0.0, help="noise augmentation: extra range noise, m")
+    ap.add_argument(
+        "--far", type=int, nargs="*", default=[], help="range augmentation: train on copies thinned by these"
+    )
+    ap.add_argument(
+        "--thin",
+        type=int,
+        nargs="*",
+        default=[],
+        help="fit for scanners with K times coarser beams: train on those copies only",
+    )
     args = ap.parse_args()
-    params = SegmentParams(jump_min=args.jump_min, jump_beams=args.jump_beams)
-    feats, y, g = collect(params, noise=args.noise)
+    params = SegmentParams(jump_min=args.jump_min, jump_beams=args.jump_beams, min_points=args.min_points)
+    far = tuple(sorted(set(REPORT_FAR) | set(args.far) | set(args.thin)))
+    feats, y, g = collect(params, noise=args.noise, far=far)
     keep = y >= 0
-    feats, y, g = feats[keep], y[keep], g[keep]
-    g = g.astype(str)
-    base = np.char.replace(g, "+noise", "")
-    clean = ~np.char.endswith(g, "+noise")
+    feats, y, g = feats[keep], y[keep], g[keep].astype(str)
+    split = np.char.partition(g, "+")
+    base, kind = split[:, 0], np.char.add(split[:, 1], split[:, 2])
+    train = np.isin(kind, ["", "+noise"] + [f"+far{k}" for k in args.far])
+    if args.thin:
+        train = np.isin(kind, [f"+far{k}" for k in args.thin])
     labelled = sorted({x for x in base if x.startswith("positive")})
     negs = sorted({x for x in base if x.startswith("negative")})
     prob = np.zeros(len(y))
     for i, name in enumerate(labelled):  # leave one labelled bag (and one negative scanner) out
-        out = (base == name) | (base == negs[i % len(negs)])  # both copies of the held-out bags
-        prob[out] = fit(feats[~out], y[~out], l2=args.l2)(feats[out])
-    # held-out numbers on the recorded scans only (the noisy copies are training data)
-    p_c, y_c = prob[clean], y[clean]
-    n_neg_scans = {"negative_2/left_scan": 435, "negative_2/rear_scan": 435, "negative_2/right_scan": 434}
-    neg = np.char.startswith(g[clean], "negative")
-    print("held-out segment-level (leave-one-bag-out):")
-    print(f"{'thr':>5} {'leg recall':>10} {'neg seg/scan':>12}")
+        out = (base == name) | (base == negs[i % len(negs)])  # every copy of the held-out bags
+        prob[out] = fit(feats[~out & train], y[~out & train], l2=args.l2)(feats[out])
+    n_neg_scans = 435 + 435 + 434  # negative_2: left, rear, right scans
+    neg = np.char.startswith(base, "negative")
+    print("held-out segment-level (leave-one-bag-out); farK: every K-th beam, legs as if K times farther")
+    print(
+        f"{'thr':>5} "
+        + " ".join(f"{c or 'recorded':>9} recall  neg/scan" for c in ["", *map("+far{}".format, far)])
+    )
     for t in (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9):
-        rec = ((p_c >= t) & (y_c == 1)).sum() / (y_c == 1).sum()
-        fpps = ((p_c >= t) & neg).sum() / sum(n_neg_scans.values())
-        print(f"{t:5.2f} {rec:10.3f} {fpps:12.2f}")
-    model = fit(feats, y, l2=args.l2)
-    print("\n" + literal(model))
+        row = []
+        for c in ["", *(f"+far{k}" for k in far)]:
+            m = kind == c
+            rec = ((prob >= t) & (y == 1) & m).sum() / ((y == 1) & m).sum()
+            row.append(f"{rec:16.3f} {((prob >= t) & neg & m).sum() / n_neg_scans:9.2f}")
+        print(f"{t:5.2f} " + " ".join(row))
+    model = fit(feats[train], y[train], l2=args.l2)
+    print("\n" + literal(model, "LEG_MODEL_COARSE" if args.thin else "LEG_MODEL"))
     return 0
 
 
