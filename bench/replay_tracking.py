@@ -5,6 +5,7 @@
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 --image-period 0.3
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again
     .venv/bin/python bench/replay_tracking.py --scenario rooms --seeds 1 --laser-again --laser-only
+    .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 --laser-step 1.0
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs
 once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a
@@ -17,7 +18,8 @@ kinds. ``--image-period`` emulates another image detector period from a
 pass one that ran the detector on every frame (stored separately). ``--laser-again`` runs the current
 laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
 in the last digits): a laser detector change measured in a minute instead of a new pass one.
-``--laser-only`` drops the stored image detections and labels as ``studio label --sources laser`` (the
+``--laser-step DEG`` simulates the recordings with coarser scanners (their own folders and pass ones):
+what a robot with a low-cost lidar (~1°) would get. ``--laser-only`` drops the stored image detections and labels as ``studio label --sources laser`` (the
 path of a rig without a camera). ``--oracle`` replaces the association (online pass, stitching, encounter
 and swap repairs) by the ground truth: in every frame the observations go one to one to the nearest people
 within 0.5 m (Hungarian), and each person's observations are smoothed, interpolated and output as ``studio
@@ -369,6 +371,13 @@ def main() -> None:
         help="emulate this image detector period, s (pass one then runs the detector on every frame once)",
     )
     ap.add_argument(
+        "--laser-step",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="simulate the scanners with this angular step (default 0.25°), e.g. 1.0 for a low-cost lidar",
+    )
+    ap.add_argument(
         "--laser-again", action="store_true", help="run the laser detector again on the stored scans"
     )
     ap.add_argument(
@@ -398,7 +407,7 @@ def main() -> None:
     total_handovers: Counter[str] = Counter()
     runs: list[Run] = []
     for seed in args.seeds:
-        rec = recording(args.scenario, args.seconds, seed)
+        rec = recording(args.scenario, args.seconds, seed, laser_step_deg=args.laser_step)
         if args.image_period is None:
             frames, cam = perception(rec, options)
         else:

@@ -21,6 +21,7 @@ import os
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +31,7 @@ from studio.commands.label import run_label
 from studio.evaluate import box_ap, evaluate
 from studio.labels import read_labels
 from studio.pipeline import LabelOptions
-from studio.sim import simulate
+from studio.sim import SimRig, simulate
 from studio.sim.simulate import SIM_VERSION
 
 OUT = Path(__file__).resolve().parent / "out"
@@ -42,12 +43,32 @@ METHODS = {
 }
 
 
-def recording(scenario: str, seconds: float | None, seed: int) -> Path:
+def recording(
+    scenario: str, seconds: float | None, seed: int, *, laser_step_deg: float | None = None
+) -> Path:
+    """The simulated recording (simulated on the first call). ``laser_step_deg``: the rig's scanners with
+    this angular step instead of 0.25° (same field of view), e.g. 1.0 for a low-cost lidar."""
     name = f"{scenario}-{'full' if seconds is None else f'{seconds:g}s'}-seed{seed}-sim{SIM_VERSION}"
+    rig = None
+    if laser_step_deg is not None:
+        name += f"-laser{laser_step_deg:g}deg"
+        base = SimRig()
+        step = float(np.deg2rad(laser_step_deg))
+        rig = replace(
+            base,
+            lasers=tuple(
+                replace(
+                    s,
+                    angle_increment=step,
+                    n_beams=round((s.n_beams - 1) * s.angle_increment / step) + 1,
+                )
+                for s in base.lasers
+            ),
+        )
     out = OUT / "sim" / name
     if not (out / "recording.mcap").exists():
         t = time.perf_counter()
-        simulate(scenario, out=out, seconds=seconds, seed=seed)
+        simulate(scenario, out=out, seconds=seconds, seed=seed, rig=rig)
         print(f"simulated {name} in {time.perf_counter() - t:.0f} s", flush=True)
     return out
 
