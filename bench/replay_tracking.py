@@ -7,38 +7,38 @@
     .venv/bin/python bench/replay_tracking.py --scenario rooms --seeds 1 --laser-again --laser-only
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 --laser-step 1.0
 
-Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs
-once per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a
-contract: delete it when the detectors change). Each call then runs the static-world filter, fusion and
-offline tracking exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also
-lists every identity switch (frame, ground-truth id, range from the robot, distance to the nearest other
-person, the track ids before and after, and its kind: an *encounter*'s, with someone else within 0.8 m;
-*after a gap*, where the person had gone unmatched for more than 10 frames; or *other*) and counts the
-kinds. ``--image-period`` emulates another image detector period from a
-pass one that ran the detector on every frame (stored separately). ``--laser-again`` runs the current
-laser detector again on the stored scans (in the base frame, so positions differ from ``studio label``'s
-in the last digits): a laser detector change measured in a minute instead of a new pass one.
-``--laser-step DEG`` simulates the recordings with coarser scanners (their own folders and pass ones):
-what a robot with a low-cost lidar (~1°) would get. ``--laser-only`` drops the stored image detections and labels as ``studio label --sources laser`` (the
-path of a rig without a camera). ``--oracle`` replaces the association (online pass, stitching, encounter
-and swap repairs) by the ground truth: in every frame the observations go one to one to the nearest people
-within 0.5 m (Hungarian), and each person's observations are smoothed, interpolated and output as ``studio
-label`` outputs a track (:func:`studio.track.offline.tracks_from_hits`); fusion, the camera gate and the
-rest are unchanged. What it scores is what these detections allow with a perfect association: the part of
-the errors that tracking can still remove. ``--likelihood`` asks whether the tracker's own model could
-have told that association from ours: on the observations both assign to someone (ours after the last
-tracking pass, the oracle's on those same observations), it prints each one's number of tracks, the
-negative log-likelihood of the tracks' observations under the constant-velocity Kalman filter the offline
-tracker uses (:func:`association_likelihood`) and their colour spread (each described observation's ΔE to
-the median colours of its track's ten described observations either side, up to 20). Where ours scores as
-well as the oracle's, no search over associations under that model finds the oracle's: the evidence, not
-the search, is what falls short. ``--jitter S`` moves every fused observation by Gaussian noise of
-standard deviation S metres (a fixed generator per jitter seed and recording) before tracking, once per
-seed of ``--jitter-seeds``: with S far below the detectors' own error (5 mm against about 60 mm) the
-detections are as good as before, so the spread of the switch count over a few jitter seeds (printed at
-the end: per jitter seed the switches of every recording and their total, then their mean and standard
-deviation) is how much a tracking change must move it to mean anything; compare two versions on the same
-jitter seeds, the noise then is the same for both. The recordings are those of ``bench/run_table.py``.
+Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs once
+per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a contract:
+delete it when the detectors change). Each call then runs the static-world filter, fusion and offline tracking
+exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also lists every identity
+switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
+before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
+person had gone unmatched for more than 10 frames; or *other*) and counts the kinds. ``--image-period``
+emulates another image detector period from a pass one that ran the detector on every frame (stored
+separately). ``--laser-again`` runs the current laser detector again on the stored scans (in the base frame,
+so positions differ from ``studio label``'s in the last digits): a laser detector change measured in a minute
+instead of a new pass one. ``--laser-step DEG`` simulates the recordings with coarser scanners (their own
+folders and pass ones): what a robot with a low-cost lidar (~1°) would get. ``--laser-only`` drops the stored
+image detections and labels as ``studio label --sources laser`` (the path of a rig without a camera).
+``--oracle`` replaces the association (online pass, stitching, encounter and swap repairs) by the ground
+truth: in every frame the observations go one to one to the nearest people within 0.5 m (Hungarian), and each
+person's observations are smoothed, interpolated and output as ``studio label`` outputs a track
+(:func:`studio.track.offline.tracks_from_hits`); fusion, the camera gate and the rest are unchanged. What it
+scores is what these detections allow with a perfect association: the part of the errors that tracking can
+still remove. ``--likelihood`` asks whether the tracker's own model could have told that association from
+ours: on the observations both assign to someone (ours after the last tracking pass, the oracle's on those
+same observations), it prints each one's number of tracks, the negative log-likelihood of the tracks'
+observations under the constant-velocity Kalman filter the offline tracker uses
+(:func:`association_likelihood`) and their colour spread (each described observation's ΔE to the median
+colours of its track's ten described observations either side, up to 20). Where ours scores as well as the
+oracle's, no search over associations under that model finds the oracle's: the evidence, not the search, is
+what falls short. ``--jitter S`` moves every fused observation by Gaussian noise of standard deviation S
+metres (a fixed generator per jitter seed and recording) before tracking, once per seed of ``--jitter-seeds``:
+with S far below the detectors' own error (5 mm against about 60 mm) the detections are as good as before, so
+the spread of the switch count over a few jitter seeds (printed at the end: per jitter seed the switches of
+every recording and their total, then their mean and standard deviation) is how much a tracking change must
+move it to mean anything; compare two versions on the same jitter seeds, the noise then is the same for both.
+The recordings are those of ``bench/run_table.py``.
 """
 
 from __future__ import annotations
