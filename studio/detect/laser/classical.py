@@ -7,6 +7,9 @@
    so range noise on the dense returns of a nearby leg is not read as a rough surface) go through a
    logistic model on a hinge basis (a generalised additive model) whose coefficients were fitted on the
    labelled scans of ``leg_tracker`` (``bench/laser_sweep.py`` reproduces them); no weights are downloaded.
+   Scans with coarse beams (≥ 0.49° apart, e.g. 1° low-cost lidars: one or two returns on a leg 3 m away)
+   are segmented from two returns on and scored by a second model fitted on the same scans thinned to
+   0.70° and 1.05° beams.
 3. Legs 0.1–0.6 m apart pair into one person at their midpoint; wide person-like segments are one
    person (legs together, skirts, coats); unpaired legs are persons with a lower score.
 4. Over time (:meth:`ClassicalLaserDetector.detect_remembering`), legs are followed from scan to scan and
@@ -28,9 +31,15 @@ from scipy.optimize import linear_sum_assignment
 
 from studio.detect.laser.base import KIND_BLOB, KIND_LEG, KIND_PAIR, LaserDetections, merge_detections
 from studio.detect.laser.errors import LaserDetectorError
-from studio.detect.laser.segment import FEATURE_NAMES, SegmentParams, segment_features, segment_scan
+from studio.detect.laser.segment import (
+    FEATURE_NAMES,
+    SegmentParams,
+    estimate_angle_step,
+    segment_features,
+    segment_scan,
+)
 
-__all__ = ["LEG_MODEL", "ClassicalLaserDetector", "LegMemory", "LegModel", "leg_basis"]
+__all__ = ["LEG_MODEL", "LEG_MODEL_COARSE", "ClassicalLaserDetector", "LegMemory", "LegModel", "leg_basis"]
 
 FloatArray = NDArray[np.float64]
 
@@ -128,6 +137,45 @@ LEG_MODEL = LegModel(
         0.636041, 0.366447, 0.018023, 0.619034, 0.199987, -0.970675, -0.846987, 0.527173, -0.049083,
     ),
     bias=-3.389496,
+)
+# fmt: on
+
+# fitted by `bench/laser_sweep.py --thin 2 3 --min-points 2` on the same scans with every 2nd / 3rd beam only
+# (0.70° / 1.05° beams, as a coarser scanner sees them), segments from two returns on: the leg model for scans
+# with beams at least `coarse_step_deg` apart
+# fmt: off
+LEG_MODEL_COARSE = LegModel(
+    mean=(
+        0.390672, 0.342496, 0.302471, 0.270022, 0.243116, 0.198543, 0.149013, 0.211037, 0.182409,
+        0.159336, 0.135796, 0.113001, 0.080348, 0.013071, 0.009838, 0.007815, 0.005491, 0.003022,
+        0.361687, 0.313185, 0.285895, 0.251817, 0.189323, 0.056685, 0.014174, 0.012472, 0.009596,
+        0.007131, 0.004287, 0.000866, 0.024606, 0.00719, 0.004378, 0.003093, 0.001916, -0.064736,
+        0.464148, 0.315394, 0.271009, 0.195566, 0.104944, 0.588482, 0.93339, 0.676556, 0.442799,
+        0.059313, 0.983801, 0.185978, 0.09064, 0.044719, 1.058084, 0.040032, 0.015504, 0.006831,
+        0.003203, 0.000602, 0.374578, 0.159749, 0.04669, 0.011044, 0.00084, 0.266886, 0.196216,
+        0.140727, 0.072548, 0.023093, 0.053336, 0.270123, 0.093718, 0.063777, 0.046695, 0.027691,
+    ),
+    std=(
+        0.454314, 0.452888, 0.445813, 0.434464, 0.420649, 0.390681, 0.343736, 0.256447, 0.25543,
+        0.250811, 0.241024, 0.226638, 0.196412, 0.022696, 0.02181, 0.020587, 0.018003, 0.013434,
+        0.177106, 0.174317, 0.16962, 0.160001, 0.134054, 0.048736, 0.028705, 0.028099, 0.026459,
+        0.024002, 0.019655, 0.033983, 0.02186, 0.020212, 0.018161, 0.016313, 0.013231, 0.778678,
+        0.545834, 0.426846, 0.386775, 0.303725, 0.173614, 0.595625, 0.494966, 0.420597, 0.323528,
+        0.048963, 0.05569, 0.044699, 0.027703, 0.015066, 0.209245, 0.148561, 0.115448, 0.086451,
+        0.061172, 0.024372, 0.289742, 0.211195, 0.10003, 0.036833, 0.005665, 0.316315, 0.294379,
+        0.268212, 0.213167, 0.127856, 0.283119, 0.24779, 0.23227, 0.208066, 0.185076, 0.145745,
+    ),
+    coef=(
+        -0.741276, -0.97971, -1.143304, -0.443105, -0.167878, -0.424505, -0.246865, -0.381392, -0.588203,
+        -0.342498, 0.250166, -0.076387, -0.078456, 0.546908, 0.590241, 0.141209, -0.77083, -0.646033,
+        1.14419, 0.15692, -0.66395, -1.512993, -0.379929, 0.261227, -0.372006, -0.109494, 0.995112,
+        0.370278, -0.757206, 0.525465, -0.005431, 0.323737, -0.610857, -0.351992, 0.011432, 0.876948,
+        -0.192287, -0.277732, -0.301755, -1.402325, 0.981166, 0.147054, -0.464588, -0.268072, -0.010543,
+        1.756977, 0.370339, -0.618766, -0.30578, 0.220454, 1.479239, -0.49607, -0.303669, -0.491451,
+        -0.064511, -0.000229, 0.133599, -0.241128, -0.30558, -0.567985, -0.063034, -0.503561, -0.365757,
+        -0.08283, 0.243126, -0.080639, 0.080289, 0.277465, -0.194649, -0.566821, 0.057523, 0.336754,
+    ),
+    bias=-4.07916,
 )
 # fmt: on
 
@@ -307,7 +355,14 @@ class ClassicalLaserDetector:
             this many (faded) scans.
         memory_share: two legs joined in at most this share of those scans are kept apart; joined in at
             least ``1 - memory_share``, they are preferred.
-        model: the leg likelihood.
+        model: the leg likelihood (fitted on scans with 0.35° beams).
+        coarse_step_deg: scans with beams this far apart or more are coarse, degrees (half way in ratio
+            between the 0.35° and 0.70° beams of the two models' scans: 0.5° scanners count as coarse).
+            On a coarse scanner a leg has few returns at any range (a 1° scanner puts 3 on a leg 2 m away,
+            1–2 beyond 3 m), where on a fine one few returns mean clutter or a far leg.
+        coarse_segment: segmentation options of coarse scans (segments from two returns on).
+        coarse_model: the leg likelihood of coarse scans (fitted on the same scans thinned to 0.70° and
+            1.05° beams, segmented with ``coarse_segment``).
     """
 
     segment: SegmentParams = field(default_factory=SegmentParams)
@@ -326,12 +381,17 @@ class ClassicalLaserDetector:
     memory_min_seen: float = 2.0
     memory_share: float = 0.35
     model: LegModel = LEG_MODEL
+    coarse_step_deg: float = 0.49
+    coarse_segment: SegmentParams = field(default_factory=lambda: SegmentParams(min_points=2))
+    coarse_model: LegModel = LEG_MODEL_COARSE
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.pair_min < self.pair_max:
             raise LaserDetectorError(f"need 0 <= pair_min < pair_max, got {self.pair_min}, {self.pair_max}")
-        if not self.model.coef:
+        if not self.model.coef or not self.coarse_model.coef:
             raise LaserDetectorError("the classical laser detector has no leg model coefficients")
+        if not self.coarse_step_deg > 0:
+            raise LaserDetectorError(f"need coarse_step_deg > 0, got {self.coarse_step_deg}")
         if self.memory_radius < 0 or self.memory_keep < 0 or self.memory_min_seen <= 0:
             raise LaserDetectorError(
                 "need memory_radius >= 0, memory_keep >= 0, memory_min_seen > 0, got "
@@ -341,27 +401,25 @@ class ClassicalLaserDetector:
             raise LaserDetectorError(f"need 0 <= memory_share < 0.5, got {self.memory_share}")
 
     # -- stages ---------------------------------------------------------------------------------------
-    def segments(
-        self, points: FloatArray, *, valid: NDArray[np.bool_] | None = None, origin: ArrayLike = (0.0, 0.0)
-    ) -> tuple[list[NDArray[np.int64]], FloatArray]:
-        """Segments of one scan and their features ``(S, F)``."""
-        pts = _check_points(points)
-        segs = segment_scan(pts, valid, origin=origin, params=self.segment)
-        return segs, segment_features(pts, segs, valid, origin=origin)
-
     def legs(
         self, points: FloatArray, *, valid: NDArray[np.bool_] | None = None, origin: ArrayLike = (0.0, 0.0)
     ) -> LaserDetections:
         """Every segment as a leg candidate (before pairing): centroid, leg likelihood, width / 2.
 
-        ``kind`` is :data:`KIND_LEG` for leg-sized segments and :data:`KIND_BLOB` for wider ones.
+        ``kind`` is :data:`KIND_LEG` for leg-sized segments and :data:`KIND_BLOB` for wider ones. A scan
+        with coarse beams (the step measured on the returns' bearings) is segmented and scored with the
+        ``coarse_`` options.
         """
         pts = _check_points(points)
-        segs, feats = self.segments(pts, valid=valid, origin=origin)
+        step = estimate_angle_step(pts, origin=origin)
+        coarse = step >= np.radians(self.coarse_step_deg)
+        params, model = (self.coarse_segment, self.coarse_model) if coarse else (self.segment, self.model)
+        segs = segment_scan(pts, valid, origin=origin, params=params, angle_step=step)
         if not segs:
             return LaserDetections.empty(with_segments=True)
+        feats = segment_features(pts, segs, valid, origin=origin)
         xy = np.array([pts[s].mean(0) for s in segs])
-        p = self.model(feats)
+        p = model(feats)
         width = feats[:, 1]
         depth = (2.0 / np.pi) * np.minimum(width / 2.0, self.leg_radius)
         xy = xy + depth[:, None] * _along_beam(xy, origin)

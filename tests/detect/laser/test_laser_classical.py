@@ -5,7 +5,7 @@ import pytest
 from laser_synth import cast
 
 from studio.detect.laser import KIND_BLOB, KIND_LEG, KIND_PAIR, LaserDetections, LaserDetectorError
-from studio.detect.laser.classical import ClassicalLaserDetector, leg_basis
+from studio.detect.laser.classical import LEG_MODEL, ClassicalLaserDetector, LegModel, leg_basis
 from studio.detect.laser.segment import FEATURE_NAMES
 
 
@@ -123,6 +123,40 @@ def test_noisy_legs_near_the_scanner_stay_legs(dist):
         d = np.hypot(people.xy[:, 0] - dist - 0.04, people.xy[:, 1]) if len(people) else np.array([9.0])
         found.append(bool(np.any((d < 0.15) & (people.scores >= 0.3))))
     assert np.mean(found) >= 0.9
+
+
+@pytest.mark.parametrize(("step_deg", "coarse"), [(0.25, False), (0.35, False), (0.5, True), (1.0, True)])
+def test_the_beam_step_picks_the_leg_model(step_deg, coarse):
+    """Scans with beams 0.5° apart or more are scored by the coarse model, finer ones by the fine model."""
+    n = len(LEG_MODEL.coef)
+    flat = {"mean": (0.0,) * n, "std": (1.0,) * n, "coef": (1e-9,) * n}
+    det = ClassicalLaserDetector(model=LegModel(**flat, bias=-5.0), coarse_model=LegModel(**flat, bias=5.0))
+    pts, valid = cast(
+        circles=[(2.0, 0.1, 0.06), (2.0, -0.1, 0.06)], walls=[(6.0, -5.0, 6.0, 5.0)], step_deg=step_deg
+    )
+    scores = det.legs(pts, valid=valid).scores
+    assert scores.size
+    assert np.all((scores > 0.5) == coarse)
+
+
+def test_coarse_beams_keep_legs_that_the_fine_model_drops():
+    """Two legs 2–3 m away seen by a 1° scanner (low-cost lidars) with 1 cm range noise have 3–4 returns each:
+    the coarse model keeps them, the model fitted on 0.35° beams mostly does not."""
+    rng = np.random.default_rng(3)
+    found = {True: [], False: []}
+    for dist in np.linspace(1.5, 2.5, 11):
+        pts, valid = cast(circles=[(dist, 0.1, 0.06), (dist, -0.1, 0.06)], walls=[(6.0, -5.0, 6.0, 5.0)],
+                          step_deg=1.0)  # fmt: skip
+        r = np.hypot(pts[:, 0], pts[:, 1])
+        with np.errstate(invalid="ignore"):
+            pts = pts * ((r + rng.normal(0.0, 0.01, len(r))) / r)[:, None]
+        for coarse in (True, False):
+            det = ClassicalLaserDetector(coarse_step_deg=0.49 if coarse else 90.0)
+            people = det.detect(pts, valid=valid)
+            d = np.hypot(people.xy[:, 0] - dist - 0.04, people.xy[:, 1]) if len(people) else np.array([9.0])
+            found[coarse].append(bool(np.any((d < 0.15) & (people.scores >= det.leg_min_score))))
+    assert np.mean(found[True]) >= 0.8
+    assert np.mean(found[True]) > np.mean(found[False]) + 0.3
 
 
 def test_people_without_segments():

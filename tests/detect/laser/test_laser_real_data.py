@@ -2,7 +2,9 @@
 
 Thresholds are the values measured with the committed leg model (see bench/bench_laser_detector.py) minus
 a margin: leg recall 0.81 and wedge precision 0.98 on positive_2_extracted, 1.97 person detections per
-scan on the first 150 scans of negative_2.bag's /left_scan.
+scan on the first 150 scans of negative_2.bag's /left_scan. The same scans with every second beam (0.70°, a
+coarse scanner for the detector) measure leg recall 0.81, precision 0.98 and 2.57 false people per scan
+(the fine leg model and segmentation alone: recall 0.49).
 """
 
 from __future__ import annotations
@@ -45,11 +47,13 @@ def _labelled(bag):
     return out
 
 
-def test_leg_recall_and_precision_on_labelled_scans():
+@pytest.mark.parametrize("every", [1, 2])
+def test_leg_recall_and_precision_on_labelled_scans(every):
     det = ClassicalLaserDetector()
     tp = fp = n = 0
-    for pts, valid, legs in _labelled(DATA / "legs_labelled" / "positive_2_extracted.bag"):
-        cand = det.legs(pts, valid=valid).above(0.5)
+    for i, (pts, valid, legs) in enumerate(_labelled(DATA / "legs_labelled" / "positive_2_extracted.bag")):
+        # every second beam: the scene as a 0.70° scanner sees it
+        cand = det.legs(pts[i % every :: every], valid=valid[i % every :: every]).above(0.5)
         ang = np.degrees(np.arctan2(cand.xy[:, 1], cand.xy[:, 0]))
         wedge = (np.abs(ang) <= 17.0) & (np.hypot(*cand.xy.T) <= 5.3)
         m = 0
@@ -64,18 +68,21 @@ def test_leg_recall_and_precision_on_labelled_scans():
     assert tp / (tp + fp) >= 0.93
 
 
-def test_false_positives_per_scan_on_negative_bag():
+@pytest.mark.parametrize("every", [1, 2])
+def test_false_positives_per_scan_on_negative_bag(every):
     from rosbags.highlevel import AnyReader
 
     det = ClassicalLaserDetector()
     counts = []
     with AnyReader([DATA / "negative_2.bag"]) as reader:
         conns = [c for c in reader.connections if c.topic == "/left_scan"]
-        for c, _, raw in islice(reader.messages(connections=conns), 150):
+        for i, (c, _, raw) in enumerate(islice(reader.messages(connections=conns), 150)):
             pts, valid = _points(reader.deserialize(raw, c.msgtype))
-            counts.append(len(det.detect(pts, valid=valid).above(0.5)))
+            counts.append(
+                len(det.detect(pts[i % every :: every], valid=valid[i % every :: every]).above(0.5))
+            )
     assert len(counts) == 150
-    assert np.mean(counts) <= 2.4
+    assert np.mean(counts) <= (2.4 if every == 1 else 3.0)
 
 
 def test_static_world_filter_on_static_robot_bag():
