@@ -1,6 +1,7 @@
 """``studio label`` laser-only on real scans: the labels against leg_tracker's labelled legs.
 
     .venv/bin/python bench/bench_real_labels.py
+    .venv/bin/python bench/bench_real_labels.py --every 2     # as a scanner with 0.70° beams would see it
 
 Data: ``../shared/data/leg_tracker/legs_labelled/*.bag`` (Leigh et al., ICRA 2015; BSD-3-Clause): a static
 robot's scans (``/training_scan``, no TF, no odometry) with the legs of the people walking in a ±15° / 5 m
@@ -16,13 +17,18 @@ per-scan detections before tracking (what tracking adds), and the labelled peopl
 wedge. Nobody was labelled outside the wedge, but people walking in it also step out of it near the robot
 (the wedge is 0.5 m wide at 1 m), so that last count is an upper bound of the clutter labelled, not a
 false-positive count. Identities are not labelled, so no MOTA here.
+
+``--every K`` labels a copy of each bag whose scans keep every K-th beam (:func:`thinned_bag`): the same
+people as a scanner with K times coarser beams (0.70° for 2, 1.05° for 3) sees them.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +53,35 @@ def scan_frame(bag: Path) -> str:
     raise SystemExit(f"{bag}: no {TOPIC}")
 
 
+def thinned_bag(src: Path, dst: Path, every: int) -> Path:
+    """A copy of the ROS1 bag ``src`` at ``dst`` whose ``LaserScan`` messages keep every ``every``-th beam
+    (the first, the ``every + 1``-th, …); all else is copied as it is."""
+    from rosbags.rosbag1 import Reader, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Reader(src) as reader, Writer(dst) as writer:
+        out = {
+            c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+            for c in reader.connections
+        }
+        for c, t, raw in reader.messages():
+            if c.msgtype.endswith("LaserScan"):
+                m = store.deserialize_ros1(raw, c.msgtype)
+                ranges = np.ascontiguousarray(m.ranges[::every])
+                keep_int = len(m.intensities) == len(m.ranges)
+                m = replace(
+                    m,
+                    ranges=ranges,
+                    intensities=np.ascontiguousarray(m.intensities[::every]) if keep_int else m.intensities,
+                    angle_increment=m.angle_increment * every,
+                    angle_max=m.angle_min + m.angle_increment * every * (len(ranges) - 1),
+                )
+                raw = store.serialize_ros1(m, c.msgtype)
+            writer.write(out[c.id], t, raw)
+    return dst
+
+
 def score(pred: list[np.ndarray], gt: list[np.ndarray], radius: float) -> tuple[int, int, int]:
     """TP, FP, FN of per-scan predictions (in the wedge) against per-scan ground truth."""
     tp = fp = fn = 0
@@ -61,13 +96,17 @@ def pr(tp: int, fp: int, fn: int) -> str:
     return f"R {r:.3f} P {p:.3f} F1 {2 * p * r / max(p + r, 1e-9):.3f}"
 
 
-def label_and_score(bag: Path, tmp: Path) -> tuple[dict[tuple[str, float], np.ndarray], int, int, int, float]:
-    """Label ``bag`` laser-only and score it: ``{("labels" | "detections", radius): [tp, fp, fn]}``, the
-    scans scored, the tracks, the labelled people outside the wedge and the seconds it took."""
+def label_and_score(
+    bag: Path, tmp: Path, every: int = 1
+) -> tuple[dict[tuple[str, float], np.ndarray], int, int, int, float]:
+    """Label ``bag`` (thinned to every ``every``-th beam) laser-only and score it: ``{("labels" |
+    "detections", radius): [tp, fp, fn]}``, the scans scored, the tracks, the labelled people outside the
+    wedge and the seconds it took."""
     rig_path = tmp / "rig.yaml"
     rig_path.write_text(f"base_frame: {scan_frame(bag)}\nlasers:\n  - topic: {TOPIC}\n")
+    src = bag if every == 1 else thinned_bag(bag, tmp / f"{bag.stem}-every{every}.bag", every)
     t = time.perf_counter()
-    run = label_recording(bag, load_rig(rig_path), options=LabelOptions(sources="laser"))
+    run = label_recording(src, load_rig(rig_path), options=LabelOptions(sources="laser"))
     dt = time.perf_counter() - t
     legs_of = {s.stamp_ns: legs for s, legs in labelled_scans(bag)}
     gt, labels, fused = [], [], []
@@ -92,6 +131,11 @@ def label_and_score(bag: Path, tmp: Path) -> tuple[dict[tuple[str, float], np.nd
 
 
 def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--every", type=int, default=1, help="label copies whose scans keep every K-th beam")
+    args = ap.parse_args()
+    if args.every < 1:
+        raise SystemExit("--every must be >= 1")
     bags = sorted((DATA / "legs_labelled").glob("*.bag"))
     if not bags:
         raise SystemExit(f"no bags in {DATA / 'legs_labelled'}")
@@ -99,7 +143,7 @@ def main() -> int:
     outside = scans_all = 0
     with tempfile.TemporaryDirectory() as tmp:
         for bag in bags:
-            counts, n, n_tracks, out_here, dt = label_and_score(bag, Path(tmp))
+            counts, n, n_tracks, out_here, dt = label_and_score(bag, Path(tmp), args.every)
             line = [f"{bag.stem}: {n} scans, {n_tracks} tracks, {dt:.1f} s"]
             for r in RADII:
                 line.append(
