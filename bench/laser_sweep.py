@@ -13,7 +13,7 @@ These scans have 0.35° beams. A copy with every K-th beam (:func:`thinned`) is 
 coarser beams sees of the same scene: legs with the returns of legs K times farther away. The held-out
 numbers are also given on copies thinned by 2 and 3 (0.70° and 1.05°: how the model does on a coarser
 scanner, or on legs 2–3 times farther than the labelled ones). ``--thin 2 3`` fits on those copies alone:
-``LEG_MODEL_COARSE``, which the detector uses for scans with beams 0.5° apart or more. ``--far`` adds thinned
+``LEG_MODEL_COARSE``, which the detector uses for scans with beams 0.38° apart or more. ``--far`` adds thinned
 copies to the recorded scans instead (one model for all; tried, not kept: docs/results.md, session 31).
 """
 

@@ -34,7 +34,7 @@ def _truth(k: int) -> np.ndarray:
 
 def _walk(*, remember: bool) -> list[PerceptionFrame]:
     # the fine-beam leg model on this 0.5° scan: it pairs a leg of each in 10 of the 25 frames (the
-    # coarse-beam model, the detector's default from 0.49°, in 5, and the tracker loses nobody without help)
+    # coarse-beam model, the detector's default from 0.38°, in 5, and the tracker loses nobody without help)
     detector = ClassicalLaserDetector(coarse_step_deg=1.0)
     out = []
     memory: dict[int, Any] | None = {} if remember else None

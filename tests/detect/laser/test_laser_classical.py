@@ -125,9 +125,11 @@ def test_noisy_legs_near_the_scanner_stay_legs(dist):
     assert np.mean(found) >= 0.9
 
 
-@pytest.mark.parametrize(("step_deg", "coarse"), [(0.25, False), (0.35, False), (0.5, True), (1.0, True)])
+@pytest.mark.parametrize(
+    ("step_deg", "coarse"), [(0.25, False), (0.35, False), (0.4, True), (0.5, True), (1.0, True)]
+)
 def test_the_beam_step_picks_the_leg_model(step_deg, coarse):
-    """Scans with beams 0.5° apart or more are scored by the coarse model, finer ones by the fine model."""
+    """Scans with beams 0.38° apart or more are scored by the coarse model, finer ones by the fine model."""
     n = len(LEG_MODEL.coef)
     flat = {"mean": (0.0,) * n, "std": (1.0,) * n, "coef": (1e-9,) * n}
     det = ClassicalLaserDetector(model=LegModel(**flat, bias=-5.0), coarse_model=LegModel(**flat, bias=5.0))
@@ -151,7 +153,7 @@ def test_coarse_beams_keep_legs_that_the_fine_model_drops():
         with np.errstate(invalid="ignore"):
             pts = pts * ((r + rng.normal(0.0, 0.01, len(r))) / r)[:, None]
         for coarse in (True, False):
-            det = ClassicalLaserDetector(coarse_step_deg=0.49 if coarse else 90.0)
+            det = ClassicalLaserDetector(coarse_step_deg=0.38 if coarse else 90.0)
             people = det.detect(pts, valid=valid)
             d = np.hypot(people.xy[:, 0] - dist - 0.04, people.xy[:, 1]) if len(people) else np.array([9.0])
             found[coarse].append(bool(np.any((d < 0.15) & (people.scores >= det.leg_min_score))))
