@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from studio import __version__
+from studio.detect.laser.classical import ClassicalLaserDetector
 
 __all__ = ["FrameExporter", "dataset_card"]
 
@@ -74,9 +75,17 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         if cam is not None
         else "- no camera",
     ]
+    beam_deg = (getattr(result, "counts", None) or {}).get("laser_beam_deg") or {}
     for las in rig.lasers:
         pose = las.pose.as_dict() if las.pose is not None else "from TF in the recording"
-        lines.append(f"- laser `{las.topic}`, pose: {pose}")
+        line = f"- laser `{las.topic}`, pose: {pose}"
+        step = beam_deg.get(las.topic)
+        if step is not None:
+            line += f", beams {step:.2f}° apart"
+            if (options.laser_detector or "classical") == "classical" and options.sources != "camera":
+                coarse = step >= ClassicalLaserDetector().coarse_step_deg
+                line += " (coarse-beam leg model)" if coarse else " (leg model for fine beams)"
+        lines.append(line)
     odo = rig.odometry
     matched = (
         options.method == "studio" and options.scan_matching and options.sources != "camera" and rig.lasers

@@ -509,6 +509,7 @@ def label_recording(
         "image_looks": info["image_looks"],
         "views_run": info["views_run"],
         "view_columns_run": info["view_columns_run"],
+        "laser_beam_deg": info["laser_beam_deg"],
     }
     image_dets = [(f.index, f.stamp_ns, f.image) for f in frames if f.image is not None]
     return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes, image_dets)

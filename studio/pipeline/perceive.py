@@ -343,6 +343,7 @@ def perceive(
     )
 
     t_img = t_las = t_io = t_wait = t_map = t_match = 0.0
+    beam_deg: dict[str, float] = {}  # per laser topic: its angle between beams, degrees
     last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
     # frames read but not yet handed on, with their image detection still running (or None)
@@ -392,6 +393,8 @@ def perceive(
                 stamp = frame.panorama.stamp_ns
             due = last_image_ns is None or stamp - last_image_ns >= options.image_period_s * 1e9 - 1e6
             t2 = time.perf_counter()
+            for sib in frame.scans:
+                beam_deg.setdefault(sib.topic, abs(float(np.degrees(sib.scan.angle_increment))))
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector, leg_memory)
             else:
@@ -454,6 +457,7 @@ def perceive(
         "views_run": getattr(image_detector, "views_run", None),
         "view_columns_run": getattr(image_detector, "view_columns_run", None),
         "frames": len(frames),
+        "laser_beam_deg": beam_deg,
         "use_camera": use_camera,
         "use_laser": use_laser,
         "rig": rig,

@@ -55,3 +55,28 @@ def test_the_dataset_card_says_how_the_labels_were_made(run: Path) -> None:
         assert part in card
     assert "movenet" in card
     assert "bridge a gap of up to 3 s with the smoother" in card  # the run's own tracking setting
+    # the simulated scanners' beams, and which leg model they got
+    assert card.count("beams 0.25° apart (leg model for fine beams)") == 2
+
+
+def test_run_json_gives_each_lasers_beam_step(run: Path) -> None:
+    counts = json.loads((run / "run.json").read_text())["counts"]
+    assert counts["laser_beam_deg"] == {"/scan_front": pytest.approx(0.25), "/scan_rear": pytest.approx(0.25)}
+
+
+@pytest.mark.parametrize(
+    ("step", "model"),
+    [(0.25, "leg model for fine beams"), (0.35, "leg model for fine beams"), (1.0, "coarse-beam")],
+)
+def test_the_dataset_card_names_the_leg_model_of_each_laser(step: float, model: str) -> None:
+    from types import SimpleNamespace
+
+    from studio.pipeline.export import dataset_card
+
+    rig = SimpleNamespace(
+        base_frame="base_link", camera=None, odometry=None, lasers=[SimpleNamespace(topic="/scan", pose=None)]
+    )
+    result = SimpleNamespace(labels=[], notes=[], image_size=None, counts={"laser_beam_deg": {"/scan": step}})
+    opts = LabelOptions(sources="laser")
+    card = dataset_card(result, options=opts, recording=Path("r.bag"), rig=rig, n_images=0)
+    assert f"- laser `/scan`, pose: from TF in the recording, beams {step:.2f}° apart ({model}" in card
