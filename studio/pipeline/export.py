@@ -101,7 +101,9 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
     lines += [
         "",
         "## How the labels were produced",
-        f"- method `{options.method}`, sources `{options.sources}`, image detector "
+        f"- method `{options.method}`, sources `{options.sources}`"
+        + (" (the rig has no camera: laser only)" if cam is None and options.sources == "both" else "")
+        + ", image detector "
         f"`{options.image_detector or 'movenet'}`, laser detector `{options.laser_detector or 'classical'}`",
         "- people boxes on perspective views around the horizon, mapped back to the panorama;",
         "  laser people from a classical leg detector (legs paired with the previous scans) with a",

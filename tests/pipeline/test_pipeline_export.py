@@ -64,19 +64,30 @@ def test_run_json_gives_each_lasers_beam_step(run: Path) -> None:
     assert counts["laser_beam_deg"] == {"/scan_front": pytest.approx(0.25), "/scan_rear": pytest.approx(0.25)}
 
 
-@pytest.mark.parametrize(
-    ("step", "model"),
-    [(0.25, "leg model for fine beams"), (0.35, "leg model for fine beams"), (1.0, "coarse-beam")],
-)
-def test_the_dataset_card_names_the_leg_model_of_each_laser(step: float, model: str) -> None:
+def _card(options: LabelOptions, lasers: list[str], beam_deg: dict[str, float]) -> str:
+    """The dataset card of a run without labels, on a rig without a camera."""
     from types import SimpleNamespace
 
     from studio.pipeline.export import dataset_card
 
     rig = SimpleNamespace(
-        base_frame="base_link", camera=None, odometry=None, lasers=[SimpleNamespace(topic="/scan", pose=None)]
+        base_frame="base_link",
+        camera=None,
+        odometry=None,
+        lasers=[SimpleNamespace(topic=t, pose=None) for t in lasers],
     )
-    result = SimpleNamespace(labels=[], notes=[], image_size=None, counts={"laser_beam_deg": {"/scan": step}})
-    opts = LabelOptions(sources="laser")
-    card = dataset_card(result, options=opts, recording=Path("r.bag"), rig=rig, n_images=0)
+    result = SimpleNamespace(labels=[], notes=[], image_size=None, counts={"laser_beam_deg": beam_deg})
+    return dataset_card(result, options=options, recording=Path("r.bag"), rig=rig, n_images=0)
+
+
+@pytest.mark.parametrize(
+    ("step", "model"),
+    [(0.25, "leg model for fine beams"), (0.35, "leg model for fine beams"), (1.0, "coarse-beam")],
+)
+def test_the_dataset_card_names_the_leg_model_of_each_laser(step: float, model: str) -> None:
+    card = _card(LabelOptions(sources="laser"), ["/scan"], {"/scan": step})
     assert f"- laser `/scan`, pose: from TF in the recording, beams {step:.2f}° apart ({model}" in card
+
+
+def test_the_dataset_card_of_a_rig_without_a_camera_says_laser_only() -> None:
+    assert "sources `both` (the rig has no camera: laser only)" in _card(LabelOptions(), [], {})
