@@ -173,6 +173,8 @@ def main() -> int:
         help="fit for scanners with K times coarser beams: train on those copies only",
     )
     args = ap.parse_args()
+    if any(k < 2 for k in [*args.far, *args.thin]) or args.min_points < 2:
+        ap.error("--far / --thin factors and --min-points must be >= 2")
     params = SegmentParams(jump_min=args.jump_min, jump_beams=args.jump_beams, min_points=args.min_points)
     far = tuple(sorted(set(REPORT_FAR) | set(args.far) | set(args.thin)))
     feats, y, g = collect(params, noise=args.noise, far=far)

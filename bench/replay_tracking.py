@@ -402,6 +402,8 @@ def main() -> None:
         help="compare how well our association and the ground truth's fit the tracker's model",
     )
     args = ap.parse_args()
+    if args.laser_step is not None and not args.laser_step > 0:
+        ap.error(f"--laser-step must be > 0 degrees, got {args.laser_step}")
     options = LabelOptions()
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
