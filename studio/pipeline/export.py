@@ -83,7 +83,7 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         if step is not None:
             line += f", beams {step:.2f}° apart"
             if (options.laser_detector or "classical") == "classical" and options.sources != "camera":
-                coarse = step >= ClassicalLaserDetector().coarse_step_deg
+                coarse = ClassicalLaserDetector().is_coarse(step)
                 line += " (coarse-beam leg model)" if coarse else " (leg model for fine beams)"
         lines.append(line)
     odo = rig.odometry

@@ -402,6 +402,10 @@ class ClassicalLaserDetector:
         if not 0.0 <= self.memory_share < 0.5:
             raise LaserDetectorError(f"need 0 <= memory_share < 0.5, got {self.memory_share}")
 
+    def is_coarse(self, step_deg: float) -> bool:
+        """Whether a scan with beams ``step_deg`` degrees apart gets the ``coarse_`` options."""
+        return abs(step_deg) >= self.coarse_step_deg
+
     # -- stages ---------------------------------------------------------------------------------------
     def legs(
         self, points: FloatArray, *, valid: NDArray[np.bool_] | None = None, origin: ArrayLike = (0.0, 0.0)
@@ -414,7 +418,7 @@ class ClassicalLaserDetector:
         """
         pts = _check_points(points)
         step = estimate_angle_step(pts, origin=origin)
-        coarse = step >= np.radians(self.coarse_step_deg)
+        coarse = self.is_coarse(float(np.degrees(step)))
         params, model = (self.coarse_segment, self.coarse_model) if coarse else (self.segment, self.model)
         segs = segment_scan(pts, valid, origin=origin, params=params, angle_step=step)
         if not segs:
