@@ -5,10 +5,12 @@ and stops for a person in its way. People walk from goal to goal (through doors 
 another room) with a smooth speed profile, turn, stop for a while, keep clear of furniture, slow down or
 step aside for each other and wait for the robot. Bodies do not overlap: a step that brings two people's
 centres closer than 0.4 m is blocked (stepping apart is free). Someone whose way a person blocks walks
-around them instead, along their side; someone stuck for 2 s in a door passage squeezes past (two people
-meeting in a narrow door), and someone who cannot get past for 4 s in a room gives up that goal and
-chooses another. Routes keep 0.3 m clear of furniture, except that one may start closer and lead away
-(stepping around someone can leave a person next to a table, who must still be able to walk off).
+around them instead, along their side; a step into a wall slides along it. Two people meeting in a door
+passage keep to its opposite sides; someone who gets no further for 2 s in a door passage squeezes past,
+and someone who cannot get past for 4 s in a room gives up that goal and chooses another. A route drawn
+from inside a door passage leaves it along the door's axis. Routes keep 0.3 m clear of furniture, except
+that one may start closer and lead away (stepping around someone can leave a person next to a table, who
+must still be able to walk off).
 Odometry integrates the true wheel velocities with a
 per-run scale error, a small curvature bias and noise proportional to the speed, so it drifts only while
 the robot moves.
@@ -16,7 +18,7 @@ the robot moves.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -63,17 +65,22 @@ class Motion:
         robot: (N, 3) true robot pose ``x, y, yaw`` in the world, metres / rad.
         odom: (N, 3) odometry pose ``T_odom_base`` (starts at 0), metres / rad.
         people: (P, N, 5) per person ``x, y, heading, speed, gait phase`` (world, metres, rad, m/s, rad).
+        standstill_s: (P,) per person the longest time they stood still on their way somewhere (people in
+            the way, a wall, the robot; not a stop at a goal), seconds.
     """
 
     t: FloatArray
     robot: FloatArray
     odom: FloatArray
     people: FloatArray
+    standstill_s: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         n = self.t.shape[0]
         if self.robot.shape != (n, 3) or self.odom.shape != (n, 3) or self.people.shape[1:] != (n, 5):
             raise ValueError("Motion arrays do not share the time axis")
+        if self.standstill_s.shape not in ((0,), (self.people.shape[0],)):
+            raise ValueError("Motion.standstill_s needs one value per person")
 
     def _interp(self, arr: FloatArray, t: float, angle_cols: tuple[int, ...]) -> FloatArray:
         f = float(np.clip(t / DT, 0.0, self.t.shape[0] - 1.000001))
@@ -100,6 +107,15 @@ class Motion:
 
 def _walkable(x: float, y: float) -> bool:
     return any(x0 <= x <= x1 and y0 <= y <= y1 for x0, x1, y0, y1 in _WALK.values())
+
+
+def _passage(x: float, y: float) -> tuple[float, float, float, float] | None:
+    """The walkable rectangle of the door passage holding ``(x, y)`` (not in a room), or None."""
+    if _in_room(x, y):
+        return None
+    return next(
+        (r for k, r in _WALK.items() if k not in _ROOMS and r[0] <= x <= r[1] and r[2] <= y <= r[3]), None
+    )
 
 
 def _in_room(x: float, y: float) -> bool:
@@ -156,9 +172,26 @@ class _Planner:
         c = np.array([x, y])
         return [c - 0.8 * n, c.copy(), c + 0.8 * n]
 
+    def door_at(self, p: FloatArray) -> tuple[str, str, float, float] | None:
+        """The door whose passage holds ``p`` (a point between two rooms), or None."""
+        for a, b, x, y in self.world.doors:
+            rect = _WALK.get(a + b) or _WALK.get(b + a)
+            if rect is not None and rect[0] <= p[0] <= rect[1] and rect[2] <= p[1] <= rect[3]:
+                return a, b, x, y
+        return None
+
     def route_to(self, start: FloatArray, room: str, goal: FloatArray) -> list[FloatArray] | None:
         here = self.room_near(start)
         pts: list[FloatArray] = []
+        door = self.door_at(start) if not _in_room(*start) else None
+        if door is not None:
+            # inside a door passage: leave it along the door's axis first (a straight line from the
+            # passage to a point in the room can cut the jamb: someone walked into it for the rest of the
+            # recording, version 4)
+            a, b, x, y = door
+            side = room if room in (a, b) else (here if here in (a, b) else a)
+            pts.append(self.door_points(b if side == a else a, side, x, y)[-1])
+            here = side
         if room != here:
             hop = next((d for d in self.adj[here] if d[0] == room), None)
             if hop is None:
@@ -218,6 +251,8 @@ class _Person:
     blocked_s: float = 0.0
     best_gap: float = np.inf
     stuck_s: float = 0.0
+    still_s: float = 0.0
+    longest_still_s: float = 0.0
 
 
 def _robot_route(sc: Scenario) -> FloatArray:
@@ -320,7 +355,13 @@ def simulate_motion(sc: Scenario, world: World, *, seconds: float, rng: np.rando
             _step_person(pp, i, people, planner, np.array([x, y, yaw]), t)
 
     odom = _integrate_odometry(wheel_v, wheel_w, r_odom)
-    return Motion(t=np.arange(n) * DT, robot=robot, odom=odom, people=people_out)
+    return Motion(
+        t=np.arange(n) * DT,
+        robot=robot,
+        odom=odom,
+        people=people_out,
+        standstill_s=np.array([pp.longest_still_s for pp in people]),
+    )
 
 
 def _step_person(
@@ -403,6 +444,10 @@ def _step_person(
     ob = planner.world.obstacles
     d_old_q = [float(np.hypot(*(pp.pos - q.pos))) for j, q in enumerate(people) if j != i]
     in_door = not _in_room(*pp.pos)
+    if in_door and pp.stuck_s >= _SQUEEZE_S:
+        # no closer to the way out for a while, whatever stops them (two people stepping around each
+        # other can take turns at blocking): squeeze past
+        pp.blocked_s = max(pp.blocked_s, _SQUEEZE_S)
     squeezing = in_door and pp.blocked_s >= _SQUEEZE_S
 
     def check(new: FloatArray) -> tuple[bool, bool]:
@@ -426,6 +471,19 @@ def _step_person(
     step = pp.v * DT * np.array([np.cos(pp.heading), np.sin(pp.heading)])
     new = pp.pos + step
     free, by_person = check(new)
+    if not free and not by_person and not _walkable(*new):
+        # a wall in the way (steering around someone can aim at a door jamb): slide along it, the longer
+        # of the step's two components first; one that runs into someone counts as blocked by them
+        for slide in sorted(
+            (np.array([new[0], pp.pos[1]]), np.array([pp.pos[0], new[1]])),
+            key=lambda q: -float(np.hypot(*(q - pp.pos))),
+        ):
+            if _walkable(*slide):
+                ok, by = check(slide)
+                if ok:
+                    new, free = slide, True
+                    break
+                by_person = by_person or by
     in_the_way = by_person
     if by_person and d_old_q:
         # someone in the way: walk around them, along their side (square to the line between the two,
@@ -440,6 +498,17 @@ def _step_person(
             if ok:
                 new, free, by_person = slide, True, False
                 break
+    rect = _passage(*pp.pos)
+    if rect is not None and (in_the_way or squeezing) and d_old_q:
+        # two people meeting in a door passage keep to its opposite sides (across a 0.94 m door, their
+        # centres pass 0.44 m apart), sidestepping at up to 0.5 m/s
+        q = [q for j, q in enumerate(people) if j != i][int(np.argmin(d_old_q))]
+        lat = 0 if rect[1] - rect[0] < rect[3] - rect[2] else 1  # the passage's narrow side
+        edge = rect[2 * lat] if q.pos[lat] >= pp.pos[lat] else rect[2 * lat + 1]
+        side = np.array(new if free else pp.pos, dtype=np.float64)
+        side[lat] += float(np.clip(edge - pp.pos[lat], -0.5 * DT, 0.5 * DT))
+        if _walkable(*side) and (squeezing or check(side)[0]):
+            new, free = side, True
     if squeezing:  # squeezes past until clear of everyone
         d_new_q = [float(np.hypot(*(new - q.pos))) for j, q in enumerate(people) if j != i]
         pp.blocked_s = pp.blocked_s if min(d_new_q, default=np.inf) < _BODY_GAP else 0.0
@@ -463,6 +532,8 @@ def _step_person(
             pp.dwell_left = float(planner.rng.uniform(1.0, 3.0))
     if pp.waypoints is None:
         pp.best_gap, pp.stuck_s = np.inf, 0.0
+    pp.still_s = pp.still_s + DT if pp.waypoints is not None and pp.v < 0.05 else 0.0
+    pp.longest_still_s = max(pp.longest_still_s, pp.still_s)
 
 
 def _turn(u: FloatArray, angle: float) -> FloatArray:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from studio.sim import motion as sim_motion
 from studio.sim.scenarios import get_scenario
@@ -164,3 +165,49 @@ def test_nobody_stands_stuck_in_the_moving_scenario(monkeypatch):
     monkeypatch.setattr(sim_motion._Planner, "draw", counting)
     sim_motion.simulate_motion(sc, build_world(), seconds=sc.seconds, rng=r_motion)
     assert sum(failed) <= 2, sum(failed)
+
+
+def test_two_people_meeting_at_a_door_jamb_get_through():
+    # moving seed 18 (version 4): two people met head-on in the door between room A and the corridor;
+    # steering around each other aimed both at the jamb, the wall stopped their steps, and they stood
+    # there 0.4 m apart for the last 50 s of the recording (nobody was "blocked by a person", so neither
+    # squeezed past)
+    up = sim_motion._Person(
+        np.array([-3.21, 3.79]), heading=1.72, cruise=1.0, v=0.21, waypoints=[np.array([-3.0, 4.8])]
+    )
+    down = sim_motion._Person(
+        np.array([-3.22, 4.20]), heading=-1.71, cruise=1.0, v=0.17, waypoints=[np.array([-3.0, 3.2])]
+    )
+    closest = _run_closest([up, down], 8.0)
+    assert up.pos[1] > 4.5, up.pos
+    assert down.pos[1] < 3.5, down.pos
+    assert closest >= sim_motion._BODY_GAP - 0.05  # on opposite sides of the passage, not through each other
+
+
+def test_a_route_from_inside_a_door_passage_leaves_it_along_the_door():
+    # moving seed 1 (version 4): a goal drawn while standing in the door passage was joined by a straight
+    # line that cut the jamb; the person walked into it for the last 72 s of the recording
+    planner = _planner()
+    start, goal = np.array([-3.22, 3.98]), np.array([-3.82, 4.56])
+    route = planner.route_to(start, "C", goal)
+    assert route is not None
+    assert len(route) == 2
+    assert route[0][0] == pytest.approx(-3.0)  # on the door's axis ...
+    assert route[0][1] > 4.5  # ... in the corridor
+    pp = sim_motion._Person(start.copy(), heading=2.37, cruise=1.0, waypoints=route)
+    closest_to_goal = np.inf
+    for k in range(int(6.0 / sim_motion.DT)):
+        sim_motion._step_person(pp, 0, [pp], planner, np.array([-4.0, -3.0, 0.0]), t=k * sim_motion.DT)
+        closest_to_goal = min(closest_to_goal, float(np.hypot(*(pp.pos - goal))))
+    assert closest_to_goal < 0.1
+
+
+@pytest.mark.parametrize("seed", [1, 18])
+def test_nobody_on_their_way_stands_still_for_long_in_the_moving_scenario(seed):
+    # version 4: 72 s (seed 1) and 50 s (seed 18) in door passages; someone boxed in by people or
+    # furniture gives up their goal after 4 s
+    sc = get_scenario("moving")
+    r_motion, _, _ = np.random.default_rng(np.random.SeedSequence(seed)).spawn(3)
+    m = sim_motion.simulate_motion(sc, build_world(), seconds=sc.seconds, rng=r_motion)
+    assert m.standstill_s.shape == (m.people.shape[0],)
+    assert m.standstill_s.max() < 4.5, m.standstill_s
