@@ -13,7 +13,9 @@ delete it when the detectors change). Each call then runs the static-world filte
 exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also lists every identity
 switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
 before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
-person had gone unmatched for more than 10 frames; or *other*) and counts the kinds. ``--image-period``
+person had gone unmatched for more than 10 frames; or *other*), marks the switches that were *undone* (the
+person went from track A to B and back to A within 30 frames: two tracks exchanged people for a moment)
+and counts the kinds and the undone. ``--image-period``
 emulates another image detector period from a pass one that ran the detector on every frame (stored
 separately). ``--laser-again`` runs the current laser detector again on the stored scans (in the base frame,
 so positions differ from ``studio label``'s in the last digits): a laser detector change measured in a minute
@@ -299,11 +301,18 @@ def switch_kind(near_m: float, gap_frames: int) -> str:
     return "after a gap" if gap_frames > GAP_FRAMES else "other"
 
 
-def switches(labels: list[Any], ev: Any, gt: LabelSet) -> Counter[str]:
-    """Print every identity switch with its context; returns how many of each :func:`switch_kind`."""
+UNDONE_FRAMES = 30  # a switch from track A to B undone (B back to A) within this many frames
+
+
+def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int]:
+    """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, and how
+    many of them come in *undone* pairs: the person went from track A to track B and back to A within
+    :data:`UNDONE_FRAMES` frames (two tracks exchanged people for a moment; each such pair is two
+    switches)."""
     gt_frames = {f.frame: f for f in gt.frames}
     last: dict[int, tuple[int, int]] = {}
     kinds: Counter[str] = Counter()
+    events: list[tuple[int, int, int, int | None, str]] = []  # frame, person, from track, to track, text
     for fe in ev.frames:
         match = {g: p for g, p, _ in fe.matches}
         for g in fe.switch_ids:
@@ -313,14 +322,26 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> Counter[str]:
             before, was = last.get(g, (-1, -1))
             kind = switch_kind(near, fe.frame - before)
             kinds[kind] += 1
-            print(
+            text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its per-frame match in frame {before}) "
                 f"-> {match.get(g)} [{kind}]"
             )
+            events.append((fe.frame, g, was, match.get(g), text))
         for g, p in match.items():
             last[g] = (fe.frame, p)
-    return kinds
+    undone: set[int] = set()
+    for i, (f, g, a, b, _) in enumerate(events):
+        for j in range(i + 1, len(events)):
+            f2, g2, a2, b2, _ = events[j]
+            if f2 - f > UNDONE_FRAMES:
+                break
+            if g2 == g and a2 == b and b2 == a and i not in undone and j not in undone:
+                undone |= {i, j}
+                break
+    for i, (*_, text) in enumerate(events):
+        print(text + (" undone" if i in undone else ""))
+    return kinds, len(undone)
 
 
 HANDOVER_FRAMES = 30  # a track matched to another person within this many frames of its last match
@@ -407,6 +428,7 @@ def main() -> None:
     options = LabelOptions()
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
+    total_undone = 0
     runs: list[Run] = []
     for seed in args.seeds:
         rec = recording(args.scenario, args.seconds, seed, laser_step_deg=args.laser_step)
@@ -450,9 +472,10 @@ def main() -> None:
             if args.likelihood:
                 compare_likelihood(seen, oracle_tracker(fused, gt))
             if args.switches:
-                kinds = switches(labels, ev, gt)
+                kinds, undone = switches(labels, ev, gt)
                 total += kinds
-                print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+                total_undone += undone
+                print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {undone} undone")
             if args.handovers:
                 kinds = handovers(ev, gt)
                 total_handovers += kinds
@@ -462,7 +485,11 @@ def main() -> None:
     if args.handovers and len(args.seeds) > 1:
         print("all handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(total_handovers.items())))
     if args.switches and len(args.seeds) > 1:
-        print("all: " + ", ".join(f"{k} {n}" for k, n in sorted(total.items())))
+        print(
+            "all: "
+            + ", ".join(f"{k} {n}" for k, n in sorted(total.items()))
+            + f"; {total_undone} of them undone (A to B and back within {UNDONE_FRAMES} frames)"
+        )
 
 
 if __name__ == "__main__":

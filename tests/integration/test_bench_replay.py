@@ -45,6 +45,43 @@ def test_handovers_tells_a_hand_off_from_a_neighbour(capsys: pytest.CaptureFixtu
     assert "frame    17 track   8: person 4 -> 3 after 1 frames; person 4 still there, 0.50 m away" in out
 
 
+def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.CaptureFixture[str]) -> None:
+    # persons 3 and 4 walk 0.5 m apart; their tracks 8 and 9 exchange them in frames 15-16 and exchange
+    # them back in frame 17. Persons 5 and 6 walk 3 m apart; their tracks 10 and 11 exchange them in
+    # frame 12 for good.
+    gt, pred = [], []
+    for i in range(20):
+        g = {3: (5.0 + 0.1 * i, 0.0), 4: (5.0 + 0.1 * i, 0.5), 5: (0.0, 0.1 * i), 6: (3.0, 0.1 * i)}
+        gt.append(_frame(i, g))
+        back = i in (15, 16)
+        later = i >= 12
+        pred.append(
+            _frame(
+                i,
+                {
+                    8: g[4 if back else 3],
+                    9: g[3 if back else 4],
+                    10: g[6 if later else 5],
+                    11: g[5 if later else 6],
+                },
+            )
+        )
+    truth = LabelSet.from_frames(gt)
+    ev = evaluate(LabelSet.from_frames(pred), truth)
+    kinds, undone = load_bench("replay_tracking").switches(pred, ev, truth)
+    assert kinds == {"encounter": 4, "other": 2}
+    assert undone == 4
+    out = capsys.readouterr().out
+    assert (
+        "frame    15 person   3 at  6.5 m, nearest other 0.50 m: "
+        "track 8 (its per-frame match in frame 14) -> 9 [encounter] undone" in out
+    )
+    assert (
+        "frame    12 person   5 at  1.2 m, nearest other 3.00 m: "
+        "track 10 (its per-frame match in frame 11) -> 11 [other]\n" in out
+    )
+
+
 def _walk(swap: bool) -> tuple[list[Observations], dict[int, list[tuple[int, int]]]]:
     """Two people walking side by side 1 m apart at 1 m/s, observed at 10 Hz; each wears other colours.
     Their tracks as a tracker that kept them apart (``swap`` False) or exchanged them halfway made them."""
