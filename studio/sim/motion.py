@@ -174,16 +174,17 @@ class _Planner:
 
     def door_at(self, p: FloatArray) -> tuple[str, str, float, float] | None:
         """The door whose passage holds ``p`` (a point between two rooms), or None."""
-        for a, b, x, y in self.world.doors:
-            rect = _WALK.get(a + b) or _WALK.get(b + a)
-            if rect is not None and rect[0] <= p[0] <= rect[1] and rect[2] <= p[1] <= rect[3]:
-                return a, b, x, y
-        return None
+        rect = _passage(float(p[0]), float(p[1]))
+        if rect is None:
+            return None
+        return next(
+            (d for d in self.world.doors if rect in (_WALK.get(d[0] + d[1]), _WALK.get(d[1] + d[0]))), None
+        )
 
     def route_to(self, start: FloatArray, room: str, goal: FloatArray) -> list[FloatArray] | None:
         here = self.room_near(start)
         pts: list[FloatArray] = []
-        door = self.door_at(start) if not _in_room(*start) else None
+        door = self.door_at(start)
         if door is not None:
             # inside a door passage: leave it along the door's axis first (a straight line from the
             # passage to a point in the room can cut the jamb: someone walked into it for the rest of the
