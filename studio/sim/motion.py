@@ -444,6 +444,7 @@ def _step_person(
     pp.v += float(np.clip(v_des - pp.v, -0.9 * DT, 0.7 * DT))
     ob = planner.world.obstacles
     d_old_q = [float(np.hypot(*(pp.pos - q.pos))) for j, q in enumerate(people) if j != i]
+    nearest = [q for j, q in enumerate(people) if j != i][int(np.argmin(d_old_q))] if d_old_q else None
     in_door = not _in_room(*pp.pos)
     if in_door and pp.stuck_s >= _SQUEEZE_S:
         # no closer to the way out for a while, whatever stops them (two people stepping around each
@@ -486,10 +487,10 @@ def _step_person(
                     break
                 by_person = by_person or by
     in_the_way = by_person
-    if by_person and d_old_q:
+    if by_person and nearest is not None:
         # someone in the way: walk around them, along their side (square to the line between the two,
         # turned a little away), on the side nearer the way one was going
-        q = [q for j, q in enumerate(people) if j != i][int(np.argmin(d_old_q))]
+        q = nearest
         toward = (q.pos - pp.pos) / max(float(np.hypot(*(q.pos - pp.pos))), 1e-6)
         length = float(np.hypot(*step))
         ways = [_turn(toward, sign * _SLIDE_ANGLE) for sign in (1.0, -1.0)]
@@ -500,10 +501,10 @@ def _step_person(
                 new, free, by_person = slide, True, False
                 break
     rect = _passage(*pp.pos)
-    if rect is not None and (in_the_way or squeezing) and d_old_q:
+    if rect is not None and (in_the_way or squeezing) and nearest is not None:
         # two people meeting in a door passage keep to its opposite sides (across a 0.94 m door, their
         # centres pass 0.44 m apart), sidestepping at up to 0.5 m/s
-        q = [q for j, q in enumerate(people) if j != i][int(np.argmin(d_old_q))]
+        q = nearest
         lat = 0 if rect[1] - rect[0] < rect[3] - rect[2] else 1  # the passage's narrow side
         edge = rect[2 * lat] if q.pos[lat] >= pp.pos[lat] else rect[2 * lat + 1]
         side = np.array(new if free else pp.pos, dtype=np.float64)
