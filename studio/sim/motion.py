@@ -2,8 +2,10 @@
 
 The robot runs its scenario program (turn on the spot, drive, wait) under speed and acceleration limits
 and stops for a person in its way. People walk from goal to goal (through doors when the goal is in
-another room) with a smooth speed profile, turn, stop for a while, keep clear of furniture, slow down or
-step aside for each other and wait for the robot. Bodies do not overlap: a step that brings two people's
+another room) with a smooth speed profile, turn, stop for a while, keep clear of furniture and wait for the
+robot. They keep their distance from each other the way walkers do: each predicts the closest approach to
+everyone over the next 3 s and, when it is under 1 m, sidesteps early (half of the way each, all of it past
+someone standing), and slows down close behind someone. Bodies do not overlap: a step that brings two people's
 centres closer than 0.4 m is blocked (stepping apart is free). Someone whose way a person blocks walks
 around them instead, along their side; a step into a wall slides along it. Two people meeting in a door
 passage keep to its opposite sides; someone who gets no further for 2 s in a door passage squeezes past,
@@ -40,6 +42,9 @@ _BODY_GAP = 0.4  # m: two people's centres come no closer (shoulders ~0.45 m wid
 _SQUEEZE_S = 2.0  # s: someone blocked by another person this long in a door passage squeezes past
 _GIVE_UP_S = 4.0  # s: someone who gets no closer to their next waypoint this long in a room gives up the goal
 _SLIDE_ANGLE = np.deg2rad(100.0)  # a step around someone in the way: this far from the direction to them
+_COMFORT_M = 1.0  # m: walkers adapt when their predicted closest approach is under this (Olivier 2012)
+_LOOK_M, _LOOK_S = 5.0, 3.0  # m, s: how far and how far ahead others are taken into account
+_MAX_AVOID = 0.8  # rad: the largest heading change an avoidance asks for
 _ROOMS = ("A", "B", "C")
 _WALK = {  # walkable rectangles: rooms with 0.25 m margin to walls, plus door passages
     "A": (-5.75, 5.75, -3.75, 3.75),
@@ -410,18 +415,16 @@ def _step_person(
             )
             err = float(wrap_angle(h_des - pp.heading))
             v_des = pp.cruise * min(1.0, remaining / 1.0 + 0.1) * max(0.15, float(np.cos(err)))
-            # keep clear of the others: steer away from people ahead, slow down behind them
+            h_des += _avoid_heading(pp, i, people, h_des, v_des)
+            # slow down close behind someone
             for j, q in enumerate(people):
                 if j == i:
                     continue
                 rel = q.pos - pp.pos
-                dq = float(np.hypot(*rel))
-                if dq < 1.0:
+                if float(np.hypot(*rel)) < 0.6:
                     ang = float(wrap_angle(np.arctan2(rel[1], rel[0]) - pp.heading))
-                    if abs(ang) < 1.0:
-                        h_des -= np.sign(ang if ang != 0 else 1.0) * 0.6 * (1.0 - dq)
-                        if dq < 0.6 and abs(ang) < 0.8:
-                            v_des *= 0.25
+                    if abs(ang) < 0.8:
+                        v_des *= 0.25
             # wait for the robot, then step aside
             rel = robot[:2] - pp.pos
             dr = float(np.hypot(*rel))
@@ -536,6 +539,45 @@ def _step_person(
         pp.best_gap, pp.stuck_s = np.inf, 0.0
     pp.still_s = pp.still_s + DT if pp.waypoints is not None and pp.v < 0.05 else 0.0
     pp.longest_still_s = max(pp.longest_still_s, pp.still_s)
+
+
+def _avoid_heading(pp: _Person, i: int, people: list[_Person], h_des: float, v_des: float) -> float:
+    """Heading change that keeps the predicted closest approach to everyone at ``_COMFORT_M`` or more.
+
+    Walkers predict the closest distance to each other over the next few seconds and adapt only when it
+    is under about 1 m (Olivier et al. 2012, "minimal predicted distance"); each of two walkers takes half
+    of the sidestep, someone passing a person who stands takes all of it. The prediction holds both
+    velocities (one's own along the desired heading), so the sidestep already made counts and the
+    heading returns to the way once the predicted distance is comfortable or the closest point passed.
+    """
+    u = np.array([np.cos(h_des), np.sin(h_des)])
+    left = np.array([-u[1], u[0]])
+    speed = max(v_des, 0.3)
+    vp = speed * u
+    lateral = 0.0
+    for j, q in enumerate(people):
+        if j == i:
+            continue
+        rel = q.pos - pp.pos
+        if float(np.hypot(*rel)) > _LOOK_M:
+            continue
+        vrel = q.v * np.array([np.cos(q.heading), np.sin(q.heading)]) - vp
+        s2 = float(vrel @ vrel)
+        if s2 < 1e-9:
+            continue
+        tau = -float(rel @ vrel) / s2
+        if not 0.0 < tau <= _LOOK_S:
+            continue
+        cpa = rel + tau * vrel
+        mpd = float(np.hypot(*cpa))
+        if mpd >= _COMFORT_M:
+            continue
+        away = -1.0 if float(cpa @ left) >= 0.0 else 1.0  # dead ahead: keep to the right
+        share = 0.5 if q.v > 0.2 else 1.0
+        lateral += away * share * (_COMFORT_M - mpd) / max(tau, 0.5)
+    if lateral == 0.0:
+        return 0.0
+    return float(np.clip(np.arctan2(lateral, speed), -_MAX_AVOID, _MAX_AVOID))
 
 
 def _turn(u: FloatArray, angle: float) -> FloatArray:

@@ -64,7 +64,7 @@ __all__ = [
 
 START_NS = 1_700_000_000_000_000_000
 """Stamp of the recording start, ns (fixed, so a seed gives identical bytes)."""
-SIM_VERSION = 5
+SIM_VERSION = 6
 """Raised whenever a scenario and seed simulate differently than before (2: bodies no longer overlap; 3:
 someone whose way a person blocks walks around them instead of passing through them after 2 s; 4: someone
 who stepped around a person to within 0.3 m of furniture can still plan a way out, where before they
