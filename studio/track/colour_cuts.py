@@ -4,8 +4,10 @@ An online track can go on from one person to another without a gap: at a door, o
 sight just as another walks in where they were; in a crowd, a coasting track takes whoever comes next
 to its prediction. Motion sees one smooth path; the colours of the observations it holds say two people.
 Offline, the whole tracklet is known, so the change can be found and cut before stitching, which then
-links each piece with the motion and colours of its own person (a cut through one person is undone there
-when their motion and colours agree across it, ``StitchConfig.max_appearance``).
+links each piece with the motion and colours of its own person. Stitching joins the two pieces of a cut
+again only when their colours next to the cut agree as a re-identification asks
+(``StitchConfig.reid_max_appearance``), not merely within a motion link's looser ``max_appearance``: a cut
+through one person is undone, but not one between two people who left and entered view at one spot.
 
 A tracklet is cut at the *change point* of its described observations: the split into an earlier and a
 later part whose median colours differ most, provided they differ by at least ``min_change`` (ΔE,
@@ -25,6 +27,7 @@ seeds 1–6 (the robot still) 31 → 40 under three noise seeds, worse where thr
 from __future__ import annotations
 
 import bisect
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -121,7 +124,7 @@ def _cut_at(obs: Sequence[Observations], hits: Hits, config: ColourCutConfig) ->
 
 def cut_colour_changes(
     obs: Sequence[Observations], tracklets: dict[int, Hits], config: ColourCutConfig | None = None
-) -> tuple[dict[int, Hits], int]:
+) -> tuple[dict[int, Hits], list[tuple[int, int]]]:
     """Cut every tracklet where its colours change for good (module docstring).
 
     Args:
@@ -131,22 +134,24 @@ def cut_colour_changes(
 
     Returns:
         The tracklets after the cuts (a cut tracklet keeps its id for its first piece; later pieces get new
-        ids above all others) and the number of cuts.
+        ids above all others) and, for every cut, the ids of the pieces either side of it (earlier, later).
     """
     cfg = config or ColourCutConfig()
     out: dict[int, Hits] = {}
     next_id = max(tracklets, default=-1) + 1
-    cuts = 0
+    cuts: list[tuple[int, int]] = []
     for tid in sorted(tracklets):
+        pieces: list[int] = []  # in time order: the stack gives the earlier part first
         todo = [(tid, list(tracklets[tid]))]
         while todo:
             pid, h = todo.pop()
             k = _cut_at(obs, h, cfg)
             if k is None or k <= 0 or k >= len(h):
                 out[pid] = h
+                pieces.append(pid)
                 continue
-            cuts += 1
             todo.append((next_id, h[k:]))
             todo.append((pid, h[:k]))
             next_id += 1
+        cuts += list(itertools.pairwise(pieces))
     return out, cuts

@@ -320,15 +320,16 @@ def track_offline(
     cfg = config or OfflineConfig()
     obs = list(observations)
     tracklets = _online_pass(obs, cfg)
+    colour_cut_pairs: list[tuple[int, int]] = []
     if cfg.colour_cuts is not None:
-        tracklets, _ = cut_colour_changes(obs, tracklets, cfg.colour_cuts)
+        tracklets, colour_cut_pairs = cut_colour_changes(obs, tracklets, cfg.colour_cuts)
     if cfg.swaps is not None:
         tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
     cache: _Cache = {}
     cuts: dict[int, int] = {}
     if cfg.stitch is not None and len(tracklets) > 1:
         summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
-        links = stitch_links(summaries, config=cfg.stitch)
+        links = stitch_links(summaries, config=cfg.stitch, cut=colour_cut_pairs)
         root = chain_links(list(tracklets), links)
         cuts = link_cuts(summaries, links, config=cfg.stitch)
     else:

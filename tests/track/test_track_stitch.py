@@ -56,6 +56,20 @@ def test_appearance_gate_and_cost():
     assert stitch_links([a, same_path_blue], config=StitchConfig(max_appearance=200.0)) == [(0, 1)]
 
 
+def test_the_pieces_of_a_colour_cut_are_joined_again_only_when_their_colours_agree_closely():
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    near = RED + np.array([0.0, 0.0, 6.0, 0.0, 0.0, 0.0], np.float32)  # one person in other light
+    off = RED + np.array([0.0, 0.0, 18.0, 0.0, 0.0, 0.0], np.float32)  # someone else, within 25 ΔE
+    b_near = tl(1, 10.1, 15.0, (0.1, 0.0), (5.0, 0.0), app=near)
+    b_off = tl(1, 10.1, 15.0, (0.1, 0.0), (5.0, 0.0), app=off)
+    assert stitch_links([a, b_off]) == [(0, 1)]  # a motion link allows 25 ΔE
+    assert stitch_links([a, b_off], cut=[(0, 1)]) == []
+    assert stitch_links([a, b_near], cut=[(0, 1)]) == [(0, 1)]  # a cut through one person is undone
+    # an undescribed piece of a cut is not joined again by motion alone
+    bare = [tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0)), tl(1, 10.1, 15.0, (0.1, 0.0), (5.0, 0.0))]
+    assert stitch_links(bare, cut=[(0, 1)]) == []
+
+
 def test_one_to_one_and_chains():
     # two walkers side by side 2 m apart, both hidden from 10 to 11 s, then again from 15 to 16 s
     parts = []
