@@ -106,13 +106,18 @@ class StitchConfig:
         max_accel_speed: largest unseen change of velocity, m/s (2 = a walker turning back).
         max_speed: fastest walking speed, m/s.
         max_appearance: largest colour difference (ΔE) of a motion link (when both sides have descriptors).
-        appearance_weight: weight of the appearance term in the cost.
+        appearance_weight: weight of the appearance term in the cost. At 2 (1 until session 33) a motion
+            link's colours count as much as its motion error at half the colour gate: ``moving`` seeds 1–20 of
+            simulator version 6, 53 → 48 identity switches, IDF1 0.942 → 0.950 (1.5 and 3: 50 and 49;
+            version 5's recordings 63 → 62). Two tracklets whose joint colours differ by 12–20 ΔE are two
+            people more often than one person (one person: 95 % under 6.5 ΔE, :mod:`studio.track.appearance`).
         reid_max_gap_s: longest gap bridged by appearance alone, seconds (0: no re-identification).
         reid_max_appearance: largest colour difference of a re-identification.
         min_views: a tracklet's colours count only when at least this many of its observations have a
             descriptor (one crop may show a neighbour or be half occluded).
         unknown_appearance: the appearance term of a motion link when a side has no usable colours, as a
-            fraction of ``appearance_weight`` (unknown is not a perfect match).
+            fraction of ``appearance_weight`` (unknown is not a perfect match; 0.25 × 2 = 0.5, the same term
+            as before session 33, so laser-only rigs link as they did).
         miss_cost: cost of leaving a tracklet end or start unlinked; links are chosen to minimise the total,
             so one good link beats two poor ones that conflict with it.
         max_overlap_s, overlap_cost: B may continue A although it starts up to ``max_overlap_s`` before A
@@ -144,11 +149,11 @@ class StitchConfig:
     max_accel_speed: float = 2.0
     max_speed: float = 2.5
     max_appearance: float = 25.0
-    appearance_weight: float = 1.0
+    appearance_weight: float = 2.0
     reid_max_gap_s: float = 60.0
     reid_max_appearance: float = 10.0
     min_views: int = 3
-    unknown_appearance: float = 0.5
+    unknown_appearance: float = 0.25
     miss_cost: float = 1.5
     max_overlap_s: float = 3.0
     overlap_cost: float = 0.25

@@ -70,6 +70,20 @@ def test_the_pieces_of_a_colour_cut_are_joined_again_only_when_their_colours_agr
     assert stitch_links(bare, cut=[(0, 1)]) == []
 
 
+def test_a_re_identification_beats_a_motion_link_to_someone_in_other_colours():
+    # A hides for 6.5 s and comes back where it was lost in its own colours (B); 1 s after A is lost,
+    # someone else walks on from A's predicted position in clothes 16 ΔE away (X). Colours count as much
+    # as motion does (appearance_weight 2): with weight 1 the smooth motion link to X won.
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    other = RED + np.array([0.0, 0.0, 16.0, 0.0, 0.0, 0.0], np.float32)
+    x = tl(1, 11.0, 13.0, (1.0, 0.05), (3.0, 0.05), app=other)
+    b = tl(2, 16.5, 20.0, (0.5, 0.0), (0.5, 0.0), v=(0.0, 0.0), app=RED + np.float32(1.0))
+    assert stitch_links([a, x, b]) == [(0, 2)]
+    assert stitch_links([a, x, b], config=StitchConfig(appearance_weight=1.0, unknown_appearance=0.5)) == [
+        (0, 1)
+    ]
+
+
 def test_one_to_one_and_chains():
     # two walkers side by side 2 m apart, both hidden from 10 to 11 s, then again from 15 to 16 s
     parts = []
