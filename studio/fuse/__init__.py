@@ -1,7 +1,7 @@
 """Fusion of image boxes and laser people into positions with covariance and provenance."""
 
 from studio.fuse.base import HOW, SOURCES, FusionConfig, PersonObservations
-from studio.fuse.fusion import BoxRange, box_ranges, fuse_frame, points_columns
+from studio.fuse.fusion import BoxRange, box_ranges, colours_hidden, fuse_frame, points_columns
 
 __all__ = [
     "HOW",
@@ -10,6 +10,7 @@ __all__ = [
     "FusionConfig",
     "PersonObservations",
     "box_ranges",
+    "colours_hidden",
     "fuse_frame",
     "points_columns",
 ]

@@ -28,7 +28,7 @@ from studio.detect.laser.base import LaserDetections
 from studio.fuse.base import FusionConfig, PersonObservations
 from studio.geometry import EquirectCamera
 
-__all__ = ["BoxRange", "box_ranges", "fuse_frame", "points_columns"]
+__all__ = ["BoxRange", "box_ranges", "colours_hidden", "fuse_frame", "points_columns"]
 
 FloatArray = NDArray[np.float64]
 
@@ -136,6 +136,41 @@ def points_columns(camera: EquirectCamera, points_base: FloatArray) -> tuple[Flo
     uv, _ = camera.project(pts)
     rng = np.hypot(*(pts[:, :2] - _cam_xy(camera)).T)
     return uv[:, 0], rng
+
+
+def colours_hidden(
+    obs: PersonObservations,
+    camera: EquirectCamera,
+    *,
+    margin: float = 0.5,
+    body_radius: float = 0.2,
+    core_frac: float = 0.2,
+) -> NDArray[np.bool_]:
+    """Which observations' boxes may show someone else's clothes: another observed person stands in front.
+
+    A box is cut where its detector saw a person, and its colours are read from the middle of it; when
+    someone nearer to the camera (by more than ``margin``) covers the middle ``core_frac`` of the box's
+    width with their body (``body_radius`` either side of their position), the pixels there are theirs.
+    On simulated ``moving`` recordings (seeds 1-10) 30 % of such boxes' colours were more than 15 ΔE from
+    their own person's (1.8 % of the others), most of them those of the person in front.
+
+    Returns:
+        ``(N,)`` True for rows with a box covered in that way (rows without a box are False).
+    """
+    n = len(obs)
+    out = np.zeros(n, bool)
+    has_box = obs.box_index >= 0
+    if n < 2 or not has_box.any():
+        return out
+    u, rng = points_columns(camera, np.c_[obs.xy, np.zeros(n)])
+    half = np.degrees(np.arctan2(body_radius, np.maximum(rng, 1e-6))) * camera.width / 360.0
+    for k in np.flatnonzero(has_box):
+        u1, _, u2, _ = obs.box[k]
+        core = 0.5 * core_frac * (u2 - u1)
+        nearer = rng < rng[k] - margin
+        off = np.abs(_offset_in_box(u[nearer], u1, u2, camera.width))
+        out[k] = bool(np.any(off < core + half[nearer]))
+    return out
 
 
 def _offset_in_box(u: FloatArray, u1: float, u2: float, width: int) -> FloatArray:

@@ -112,6 +112,9 @@ class FrameResult:
             ``robot_pose``.
         legs: ``(N, 2, 2)`` base frame, the two legs of each observation made from a laser leg pair (NaN
             rows for the others; observations appended later have none), or None.
+        colours_hidden: ``(N,)`` observations whose box may show someone standing in front of them
+            (:func:`~studio.fuse.colours_hidden`): their clothing colours are not used (observations
+            appended later have none), or None.
     """
 
     index: int
@@ -121,6 +124,7 @@ class FrameResult:
     scan_points: NDArray[np.float32] | None = None
     track_pose: Pose2 | None = None
     legs: NDArray[np.float64] | None = None
+    colours_hidden: NDArray[np.bool_] | None = None
 
     @property
     def world_pose(self) -> Pose2:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from studio.detect.laser.base import KIND_PAIR, LaserDetections
 from studio.errors import StudioError
 from studio.fuse.base import PersonObservations
-from studio.fuse.fusion import fuse_frame
+from studio.fuse.fusion import colours_hidden, fuse_frame
 from studio.geometry import EquirectCamera
 from studio.labels.base import LabelFrame, LabelPerson, as_box
 from studio.pipeline.base import FrameResult, LabelOptions
@@ -188,6 +188,7 @@ def fuse_all(
             None if pts is None else pts.astype(np.float32),
             f.track_pose,
             _pair_legs(obs, laser),
+            None if camera is None else colours_hidden(obs, camera),
         )
     return [r for r in out if r is not None]
 
@@ -292,8 +293,11 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma:
     app = None
     if appearance is not None:
         app = np.full((len(xy), APPEARANCE_DIM), np.nan, np.float32)
+        hidden = np.zeros(n, bool)
+        if fr.colours_hidden is not None:
+            hidden[: len(fr.colours_hidden)] = fr.colours_hidden[:n]
         for k, bi in enumerate(obs.box_index):
-            if bi >= 0 and bi < len(appearance):
+            if 0 <= bi < len(appearance) and not hidden[k]:
                 app[k] = appearance[bi]
     source = obs.source + tuple(obs.source[k] for k in pairs for _ in range(2))
     score = np.r_[obs.score, np.repeat(obs.score[pairs], 2)]

@@ -12,6 +12,7 @@ from studio.geometry.se import Pose2
 from studio.pipeline import LabelOptions
 from studio.pipeline.base import FrameResult
 from studio.pipeline.label import PerceptionFrame, track_all, tracking_config
+from studio.track.offline import track_offline
 
 T0 = 1_700_000_000_000_000_000
 
@@ -97,3 +98,37 @@ def test_a_given_tracker_replaces_the_offline_tracker():
     frames_with_people = [lf.frame for lf in labels if lf.people]
     assert frames_with_people
     assert max(frames_with_people) < 20
+
+
+def test_colours_of_a_box_with_someone_in_front_do_not_reach_the_tracker() -> None:
+    """A box whose middle someone nearer covers (``FrameResult.colours_hidden``) gives its observation no
+    colours; the others keep theirs, also where the mask is shorter than the observations (rows appended
+    after fusion, the recovered scan clusters, have no entry)."""
+    pose = Pose2(0.0, 0.0, 0.0)
+    colours = np.array([[40, 10, 10, 20, 0, 0], [60, -10, 20, 30, 5, 5]], np.float32)
+    frames, fused = [], []
+    for k in range(6):
+        t = T0 + k * 100_000_000
+        obs = PersonObservations(
+            np.array([[5.0, 0.0], [3.5, 0.05]]), np.repeat((0.1**2 * np.eye(2))[None], 2, 0),
+            np.array([0.8, 0.8]), ("fused", "fused"), ("laser-detection",) * 2,
+            np.array([[100.0, 400.0, 140.0, 560.0], [95.0, 380.0, 150.0, 600.0]]), np.array([0, 1]),
+            np.array([0, 1]),
+        )  # fmt: skip
+        hidden = None if k % 2 == 0 else np.array([True]) if k == 5 else np.array([True, False])
+        no_scan = (np.zeros(0), np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
+        frames.append(PerceptionFrame(k, t, pose, None, colours, None, *no_scan))
+        fused.append(FrameResult(k, t, pose, obs, None, colours_hidden=hidden))
+    seen = []
+
+    def capture(observations, config):
+        seen.extend(observations)
+        return track_offline(observations, config=config)
+
+    track_all(frames, fused, LabelOptions(recover_radius=0.0), has_camera=True, tracker=capture)
+    for k, o in enumerate(seen):
+        np.testing.assert_array_equal(o.appearance[1], colours[1])
+        if k % 2:
+            assert np.isnan(o.appearance[0]).all()
+        else:
+            np.testing.assert_array_equal(o.appearance[0], colours[0])
