@@ -146,14 +146,17 @@ def colours_hidden(
     body_radius: float = 0.2,
     core_frac: float = 0.2,
 ) -> NDArray[np.bool_]:
-    """Which observations' boxes may show someone else's clothes: another observed person stands in front.
+    """Which observations' boxes may show someone else's clothes: one box over two people on one bearing.
 
-    A box is cut where its detector saw a person, and its colours are read from the middle of it; when
-    someone nearer to the camera (by more than ``margin``) covers the middle ``core_frac`` of the box's
-    width with their body (``body_radius`` either side of their position), the pixels there are theirs.
-    On simulated ``moving`` recordings (seeds 1-6) 48 % of such boxes' colours were more than 15 ΔE from
-    their own person's median (2.3 % of the others'), most of them those of the person in front (a box
-    merged over both: the front one's head and torso, the feet of the one behind).
+    A box's colours are read from its middle. When the laser sees someone nearer to the camera (by more
+    than ``margin``) whose body (``body_radius`` either side of their position) covers the middle
+    ``core_frac`` of the box's width, and the image detector gave that person no box of their own, the
+    detector saw one person where there were two: the box is typically the front person's head and torso
+    down to the feet of the one behind, its foot row says the range of the one behind, fusion gives it to
+    that one's laser detection, and the colours are the front person's. On simulated ``moving`` recordings
+    (seeds 1-10, each described observation compared with its own person's median colours) 44 of 56 such
+    boxes were more than 15 ΔE off, against 309 of 16 086 boxes nobody covers (1.9 %); where the person in
+    front has a box of their own (the detector told them apart), 11 of 50.
 
     Returns:
         ``(N,)`` True for rows with a box covered in that way (rows without a box are False).
@@ -161,16 +164,16 @@ def colours_hidden(
     n = len(obs)
     out = np.zeros(n, bool)
     has_box = obs.box_index >= 0
-    if n < 2 or not has_box.any():
+    if n < 2 or not has_box.any() or has_box.all():
         return out
     u, rng = points_columns(camera, np.c_[obs.xy, np.zeros(n)])
     half = np.degrees(np.arctan2(body_radius, np.maximum(rng, 1e-6))) * camera.width / 360.0
     for k in np.flatnonzero(has_box):
         u1, _, u2, _ = obs.box[k]
         core = 0.5 * core_frac * (u2 - u1)
-        nearer = rng < rng[k] - margin
-        off = np.abs(_offset_in_box(u[nearer], u1, u2, camera.width))
-        out[k] = bool(np.any(off < core + half[nearer]))
+        front = ~has_box & (rng < rng[k] - margin)
+        off = np.abs(_offset_in_box(u[front], u1, u2, camera.width))
+        out[k] = bool(np.any(off < core + half[front]))
     return out
 
 

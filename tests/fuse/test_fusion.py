@@ -242,33 +242,35 @@ def test_someone_beside_a_boxed_person_in_the_same_box_is_seen_by_the_camera() -
     assert narrow.how == ("laser-detection", "laser-only")
 
 
-def test_colours_of_a_box_with_someone_in_front_are_hidden() -> None:
-    # four people, each boxed and seen by the laser: B stands 1.5 m in front of A, in the middle of A's box;
-    # C beside A at the same range; D behind and to the side of B
-    people = [(5.0, 0.0), (3.5, 0.05), (5.0, 1.8), (6.5, -1.1)]
-    obs = fuse_frame(dets(*(person(*p) for p in people)), laser(*people), camera=CAM)
-    assert obs.source == ("fused",) * 4
-    order = [int(np.argmin(np.hypot(*(obs.xy - np.array(p)).T))) for p in people]
+def test_colours_of_a_box_over_two_people_on_one_bearing_are_hidden() -> None:
+    # the laser sees B 1.5 m in front of A, in the middle of A's box, and the detector gave B no box (one box
+    # over both): A's colours are hidden; C beside A at the same range and D behind, boxed, are not
+    boxed = [(5.0, 0.0), (5.0, 1.8), (6.5, -1.1)]
+    front = (3.5, 0.05)
+    obs = fuse_frame(dets(*(person(*p) for p in boxed)), laser(*boxed, front), camera=CAM)
+    assert sorted(obs.source) == ["fused", "fused", "fused", "laser"]
+    order = [int(np.argmin(np.hypot(*(obs.xy - np.array(p)).T))) for p in [*boxed, front]]
     hidden = colours_hidden(obs, CAM)
     assert [bool(hidden[k]) for k in order] == [True, False, False, False]
-    # someone in front of only the edge of the box leaves its middle free; so does one no nearer than the
-    # margin (two people side by side)
-    edge = fuse_frame(dets(person(5.0, 0.0), person(3.5, 0.45)), laser((5.0, 0.0), (3.5, 0.45)), camera=CAM)
-    assert not colours_hidden(edge, CAM).any()
+    # no nearer than the margin (two people side by side), or in front of the box's edge only: not hidden
     assert not colours_hidden(obs, CAM, margin=2.0).any()
+    edge = fuse_frame(dets(person(5.0, 0.0)), laser((5.0, 0.0), (3.5, 0.45)), camera=CAM)
+    assert edge.source == ("fused", "laser")
+    assert not colours_hidden(edge, CAM).any()
+    # the detector told them apart (B has a box of its own): each box is cut around its own person
+    apart = fuse_frame(dets(person(5.0, 0.0), person(*front)), laser((5.0, 0.0), front), camera=CAM)
+    assert apart.source == ("fused", "fused")
+    assert not colours_hidden(apart, CAM).any()
+
+
+def test_colours_hidden_across_the_seam() -> None:
     # on the panorama's 0/360° seam (behind the robot, the camera yawed by 0.2 rad)
     az = np.pi + 0.2
-    back = [(5.0 * np.cos(az), 5.0 * np.sin(az)), (3.5 * np.cos(az + 0.01), 3.5 * np.sin(az + 0.01))]
-    boxes = [person(*p)[0] for p in back]
-    assert all(b[0] < W < b[2] for b in boxes)
-    seam = fuse_frame(dets(*(person(*p) for p in back)), laser(*back), camera=CAM)
-    far = int(np.argmax(np.hypot(*seam.xy.T)))
-    assert colours_hidden(seam, CAM).tolist() == [k == far for k in range(2)]
-
-
-def test_a_laser_person_in_front_hides_the_colours_and_rows_without_a_box_are_never_hidden() -> None:
-    obs = fuse_frame(dets(person(5.0, 0.0)), laser((5.0, 0.0), (3.0, 0.02)), camera=CAM)
-    assert obs.source == ("fused", "laser")
-    assert colours_hidden(obs, CAM).tolist() == [True, False]
-    alone = fuse_frame(dets(person(5.0, 0.0)), laser((5.0, 0.0)), camera=CAM)
+    back, front = (5.0 * np.cos(az), 5.0 * np.sin(az)), (3.5 * np.cos(az + 0.01), 3.5 * np.sin(az + 0.01))
+    box = person(*back)[0]
+    assert box[0] < W < box[2]
+    seam = fuse_frame(dets(person(*back)), laser(back, front), camera=CAM)
+    assert seam.source == ("fused", "laser")
+    assert colours_hidden(seam, CAM).tolist() == [True, False]
+    alone = fuse_frame(dets(person(*back)), laser(back), camera=CAM)
     assert colours_hidden(alone, CAM).tolist() == [False]
