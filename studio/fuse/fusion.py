@@ -38,6 +38,7 @@ _HIPS = (11, 12)
 _KNEES = (13, 14)
 _ANKLES = (15, 16)
 _BIG = 1e9
+_CLOTHES_Z = 1.0  # m above the base frame: between the thighs and the torso
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,8 @@ def colours_hidden(
     has_box = obs.box_index >= 0
     if n < 2 or not has_box.any() or has_box.all():
         return out
-    u, rng = points_columns(camera, np.c_[obs.xy, np.zeros(n)])
+    # columns at the height the colours are read from (a tilted camera sees the floor elsewhere)
+    u, rng = points_columns(camera, np.c_[obs.xy, np.full(n, _CLOTHES_Z)])
     half = np.degrees(np.arctan2(body_radius, np.maximum(rng, 1e-6))) * camera.width / 360.0
     for k in np.flatnonzero(has_box):
         u1, _, u2, _ = obs.box[k]
