@@ -84,6 +84,20 @@ def test_a_tracklet_is_cut_where_it_went_on_with_someone_else():
     assert same == tracklets
 
 
+def test_the_cut_goes_where_the_track_went_unobserved_between_the_two_people():
+    # moving seed 11 of simulator version 6, frame 270: one person walked out of a door as another came
+    # in; the track missed the frames between them, and the cut halfway between the last described
+    # observation of the one and the first of the other gave the other's track two frames of the first
+    obs = _walk(n=80, change=40, every=8)  # described: ..., 24, 32 (A); 40, 48, ... (B)
+    hits = [(i, 0) for i in range(80) if not 38 <= i <= 39]  # the track saw nobody in frames 38-39
+    cut, pairs = cut_colour_changes(obs, {4: hits})
+    assert pairs == [(4, 5)]
+    assert cut[4][-1][0] == 37 and cut[5][0][0] == 40  # halfway between frames 32 and 40 would be 36
+    hits = [(i, 0) for i in range(80) if i not in (34, 37, 38)]  # two misses: the longer one decides
+    cut, _ = cut_colour_changes(obs, {4: hits})
+    assert cut[5][0][0] == 39
+
+
 def test_the_pieces_of_a_tracklet_cut_twice_are_paired_in_time_order():
     C = A + np.array([0.0, 0.0, 30.0, 0.0, 0.0, 0.0])
     obs = _walk(n=90, change=50)
