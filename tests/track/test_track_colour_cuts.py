@@ -92,7 +92,8 @@ def test_the_cut_goes_where_the_track_went_unobserved_between_the_two_people():
     hits = [(i, 0) for i in range(80) if not 38 <= i <= 39]  # the track saw nobody in frames 38-39
     cut, pairs = cut_colour_changes(obs, {4: hits})
     assert pairs == [(4, 5)]
-    assert cut[4][-1][0] == 37 and cut[5][0][0] == 40  # halfway between frames 32 and 40 would be 36
+    assert cut[4][-1][0] == 37
+    assert cut[5][0][0] == 40  # halfway between frames 32 and 40 would be 36
     hits = [(i, 0) for i in range(80) if i not in (34, 37, 38)]  # two misses: the longer one decides
     cut, _ = cut_colour_changes(obs, {4: hits})
     assert cut[5][0][0] == 39
@@ -141,6 +142,29 @@ def test_offline_tracking_gives_the_one_who_took_over_a_track_of_their_own():
     last = {p.track_id for f in res.frames[35:] for p in f.points}
     assert len(first) == len(last) == 1
     assert first != last
+
+
+def test_a_tracklet_claims_the_described_detections_its_colours_turned_down():
+    # the other person's colours are 60 ΔE from the first's, beyond the online association's 40 ΔE gate:
+    # the track goes on through the other's undescribed detections (odd frames) and coasts over their
+    # described ones (even frames), which nobody takes (moving seed 14 of simulator version 6, frame
+    # 422); the tracklet then showed only the first person's colours, and nothing cut it
+    far = A + np.array([0.0, 60.0, 0.0, 0.0, 0.0, 0.0])
+    obs = [
+        replace(o, appearance=far[None].astype(np.float32)) if i >= 30 and i % 2 == 0 else o
+        for i, o in enumerate(_walk())
+    ]
+    base = OfflineConfig(
+        tracker=UkfTrackerConfig(max_coast_s=1.0, appearance_weight=0.1, appearance_gate=40.0)
+    )
+    unclaimed = track_offline(obs, config=replace(base, claim=None))
+    assert len(unclaimed.track_ids()) == 1
+    assert not any(f.points and f.points[0].det_index >= 0 for f in unclaimed.frames[30::2])
+    res = track_offline(obs, config=base)
+    assert len(res.track_ids()) == 2
+    ids = [{p.track_id for p in f.points} for f in res.frames]
+    assert set().union(*ids[:29]) != set().union(*ids[31:])
+    assert all(len(f.points) == 1 and f.points[0].det_index >= 0 for f in res.frames[30::2])  # claimed
 
 
 def test_bad_options_are_refused():
