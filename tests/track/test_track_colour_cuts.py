@@ -99,6 +99,20 @@ def test_the_cut_goes_where_the_track_went_unobserved_between_the_two_people():
     assert cut[5][0][0] == 39
 
 
+def test_stamp_jitter_is_no_missed_frame():
+    # a real recording's frame stamps jitter by milliseconds: without a missed frame the cut stays halfway,
+    # and a miss still decides among jittered steps
+    rng = np.random.default_rng(3)
+    obs = [
+        replace(o, stamp_ns=o.stamp_ns + int(rng.integers(-4_000_000, 4_000_000)))
+        for o in _walk(n=80, change=40, every=8)
+    ]
+    cut, _ = cut_colour_changes(obs, {4: [(i, 0) for i in range(80)]})
+    assert cut[5][0][0] == 36  # halfway between frames 32 and 40
+    cut, _ = cut_colour_changes(obs, {4: [(i, 0) for i in range(80) if i != 38]})
+    assert cut[5][0][0] == 39
+
+
 def test_the_pieces_of_a_tracklet_cut_twice_are_paired_in_time_order():
     C = A + np.array([0.0, 0.0, 30.0, 0.0, 0.0, 0.0])
     obs = _walk(n=90, change=50)
