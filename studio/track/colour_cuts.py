@@ -17,8 +17,9 @@ observations, each part is consistent (its observations' median difference from 
 median than the other's (a short run of a neighbour's colours, from a box paired with the wrong laser
 detection, is no change). The cut goes where the track went unobserved for longest between the last
 described observation before the change and the first one after (it lost the one person there and took
-the other, as at a door; the middle one of equally long gaps, up to the stamps' jitter), or halfway
-between the two when the track missed no frame in between; each piece is searched again.
+the other, as at a door; the middle one of equally long gaps, counted in frames, so neither the stamps'
+jitter nor a frame the sensor dropped counts), or halfway between the two when the track missed no frame
+in between; each piece is searched again.
 
 Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.md, session 27):
 ``moving`` seeds 1–12 35 → 28 identity switches (under five seeds of 5 mm noise 216 → 175 in all), IDF1
@@ -111,10 +112,6 @@ def colour_change(colours: NDArray[np.float64], config: ColourCutConfig) -> int 
     return None
 
 
-MISS_FACTOR = 1.5  # a step between two hits this many times the shortest one there is a missed frame
-LONGEST_SHARE = 0.8  # steps longer than this share of the longest are as long (real stamps jitter)
-
-
 def _cut_at(obs: Sequence[Observations], hits: Hits, config: ColourCutConfig) -> int | None:
     """Where to cut ``hits`` (the index of the first hit of the later piece), or None."""
     at: list[int] = []
@@ -130,10 +127,10 @@ def _cut_at(obs: Sequence[Observations], hits: Hits, config: ColourCutConfig) ->
     if m is None:
         return None
     lo, hi = at[m - 1] + 1, at[m]  # the cut goes before one of hits[lo..hi]
-    stamps = np.array([obs[i].stamp_ns for i, _ in hits[lo - 1 : hi + 1]], dtype=np.int64)
-    gaps = np.diff(stamps)
-    if gaps.max() > MISS_FACTOR * gaps.min():  # the track went unobserved in between: it lost one person
-        longest = np.flatnonzero(gaps > LONGEST_SHARE * gaps.max())  # equal up to the stamps' jitter
+    # frames skipped between hits (the recording's frames, so a frame the sensor dropped is no miss)
+    gaps = np.diff([i for i, _ in hits[lo - 1 : hi + 1]])
+    if gaps.max() > 1:  # the track went unobserved in between: it lost one person there
+        longest = np.flatnonzero(gaps == gaps.max())
         return lo + int(longest[np.argmin(np.abs(longest - (hi - lo) / 2))])
     return (at[m - 1] + at[m] + 1) // 2
 

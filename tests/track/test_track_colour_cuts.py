@@ -99,9 +99,9 @@ def test_the_cut_goes_where_the_track_went_unobserved_between_the_two_people():
     assert cut[5][0][0] == 39
 
 
-def test_stamp_jitter_is_no_missed_frame():
-    # a real recording's frame stamps jitter by milliseconds: without a missed frame the cut stays halfway,
-    # and a miss still decides among jittered steps
+def test_stamp_jitter_and_dropped_frames_are_no_miss():
+    # a real recording's frame stamps jitter by milliseconds and a sensor drops frames: without a missed
+    # frame the cut stays halfway, and a miss still decides
     rng = np.random.default_rng(3)
     obs = [
         replace(o, stamp_ns=o.stamp_ns + int(rng.integers(-4_000_000, 4_000_000)))
@@ -111,6 +111,10 @@ def test_stamp_jitter_is_no_missed_frame():
     assert cut[5][0][0] == 36  # halfway between frames 32 and 40
     cut, _ = cut_colour_changes(obs, {4: [(i, 0) for i in range(80) if i != 38]})
     assert cut[5][0][0] == 39
+    dropped = _walk(n=81, change=40, every=8)
+    del dropped[37]  # the sensor dropped a frame: the stamps jump, the track missed nothing
+    cut, _ = cut_colour_changes(dropped, {4: [(i, 0) for i in range(80)]})
+    assert cut[5][0][0] == 36  # halfway between frames 32 and 39 (the B colours' first)
 
 
 def test_the_pieces_of_a_tracklet_cut_twice_are_paired_in_time_order():
