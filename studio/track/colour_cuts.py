@@ -127,12 +127,11 @@ def _cut_at(obs: Sequence[Observations], hits: Hits, config: ColourCutConfig) ->
     if m is None:
         return None
     lo, hi = at[m - 1] + 1, at[m]  # the cut goes before one of hits[lo..hi]
-    # frames skipped between hits (the recording's frames, so a frame the sensor dropped is no miss)
+    # steps between hits in the recording's frames (a frame the sensor dropped is no miss); the longest
+    # nearest the middle: without a miss, every step is one frame and that is halfway
     gaps = np.diff([i for i, _ in hits[lo - 1 : hi + 1]])
-    if gaps.max() > 1:  # the track went unobserved in between: it lost one person there
-        longest = np.flatnonzero(gaps == gaps.max())
-        return lo + int(longest[np.argmin(np.abs(longest - (hi - lo) / 2))])
-    return (at[m - 1] + at[m] + 1) // 2
+    longest = np.flatnonzero(gaps == gaps.max())
+    return lo + int(longest[np.argmin(np.abs(longest - (hi - lo) / 2))])
 
 
 def cut_colour_changes(
