@@ -75,3 +75,45 @@ def test_without_a_box_nearby_in_time_static_detections_are_dropped() -> None:
     kept = [bool((np.hypot(*(f.observations.xy - PERSON).T) < 0.3).any()) for f in out]
     # 0.5 s at 10 Hz: frames 1–5 are vouched for by the box of frame 0, the later ones are not
     assert kept == [True] * 6 + [False] * 6
+
+
+def test_a_box_on_someone_walking_past_does_not_vouch_for_the_chair_beside_them() -> None:
+    # someone walks past a chair 0.27 m away; the box of each image frame takes their (moving) laser person:
+    # that says nothing of the chair, whose static detection stays dropped on the frames between images
+    chair, walker = np.array([3.0, 0.0]), np.array([2.85, 0.22])
+    hits = np.zeros((200, 200), np.int32)
+    hits[157:162, 96:104] = 50  # the chair's cells: x 2.85–3.1, y -0.2–0.2 (cell 0.05 m from -5, -5)
+    free = np.where(hits > 0, 0, 50).astype(np.int32)
+    smap = StaticMap(cell=0.05, origin=(-5.0, -5.0), hits=hits, free=free, n_scans=50)
+    frames = []
+    for k in range(6):
+        pts2 = np.concatenate([_legs(walker), _legs(chair)])
+        pts = np.c_[pts2, np.full(len(pts2), 0.3)].astype(np.float32)
+        laser = LaserDetections(
+            np.array([walker, chair]), np.array([0.9, 0.9]), np.full(2, KIND_PAIR), np.full(2, 0.2),
+            [np.arange(12), np.arange(12, 24)],
+        )  # fmt: skip
+        image = None
+        if k % 2 == 0:
+            uv, _ = CAMERA.project(np.array([[2.85, -0.03, 0.0], [2.85, 0.47, 1.7]]))
+            image = ImageDetections(
+                np.array([[*uv.min(axis=0), *uv.max(axis=0)]]), np.array([0.9]), None, 1920, 960
+            )
+        frames.append(
+            PerceptionFrame(
+                k,
+                k * 100_000_000,
+                Pose2(),
+                image,
+                None,
+                laser,
+                np.full(2, 0.3),
+                pts,
+                np.zeros((1, 2)),
+                np.zeros(len(pts), np.int16),
+            )
+        )
+    out = fuse_all(frames, CAMERA, LabelOptions(), static_map=smap, body_maps=[])
+    for f in out:
+        assert (np.hypot(*(f.observations.xy - walker).T) < 0.05).sum() == 1, f.index
+        assert not (np.hypot(*(f.observations.xy - chair).T) < 0.05).any(), f.index
