@@ -6,7 +6,8 @@ homographies). Each person box gets a range estimate from the image alone — th
 are associated one-to-one with laser detections (Hungarian) on column and range consistency. A box that
 finds no detection takes the scan cluster inside its azimuth span closest to the robot (the thesis's
 fallback, here also range-gated); failing that, an image-only position from its range cue with a large
-covariance. A laser detection on never-moving structure may be taken by a box (someone who stood still
+covariance, unless the laser saw through that spot (then the box is a loose one on someone farther away,
+or no person). A laser detection on never-moving structure may be taken by a box (someone who stood still
 for the whole recording looks static to the laser), but not from behind moving scan points in the box's
 columns: that is the wall seen between the legs of a person the laser detector missed. There is never a
 fixed fallback position. Laser detections no box confirms are kept with source ``laser``; whether they
@@ -25,7 +26,7 @@ from scipy.optimize import linear_sum_assignment
 
 from studio.detect.image.base import ImageDetections
 from studio.detect.laser.base import LaserDetections
-from studio.fuse.base import FusionConfig, PersonObservations
+from studio.fuse.base import FusionConfig, PersonObservations, ScanRays
 from studio.geometry import EquirectCamera
 
 __all__ = ["BoxRange", "box_ranges", "colours_hidden", "fuse_frame", "points_columns"]
@@ -199,6 +200,7 @@ def fuse_frame(
     laser_z: FloatArray | float = 0.3,
     scan_points: FloatArray | None = None,
     laser_static: NDArray[np.bool_] | None = None,
+    rays: ScanRays | None = None,
     config: FusionConfig | None = None,
 ) -> PersonObservations:
     """Fuse one frame's image and laser people into positions in the base frame.
@@ -212,6 +214,8 @@ def fuse_frame(
         laser_static: ``(N,)`` laser detections on never-moving structure (the static-world map). A box may
             still take one (someone who stands still for the whole recording looks static to the laser),
             but one no box takes is dropped.
+        rays: all the frame's beams that returned (static structure included): a box whose image-only
+            position the laser saw through makes no observation (:attr:`FusionConfig.see_through_halfwidth`).
         config: association parameters.
 
     Returns:
@@ -291,11 +295,11 @@ def fuse_frame(
             if i in matched_boxes:
                 continue
             obs = None
+            gate = max(cfg.gate_range_min + 0.2, cfg.gate_sigma * br.sigma[i])  # NaN without a range
             if len(u_p) and pts is not None:
                 off = _offset_in_box(u_p, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
                 sel = np.abs(off) <= cfg.cluster_core_frac
                 if np.isfinite(br.range[i]):
-                    gate = max(cfg.gate_range_min + 0.2, cfg.gate_sigma * br.sigma[i])
                     sel &= np.abs(r_p - br.range[i]) <= gate
                 sel &= r_p <= cfg.max_range
                 idx = np.flatnonzero(sel)
@@ -324,6 +328,14 @@ def fuse_frame(
             if obs is None and np.isfinite(br.range[i]):
                 az, r = float(br.az[i]), float(br.range[i])
                 xy = cam_xy + r * np.array([np.cos(az), np.sin(az)])
+                if (
+                    rays is not None
+                    and cfg.see_through_halfwidth > 0
+                    and rays.seen_through(
+                        xy, gate, cfg.see_through_halfwidth, cfg.see_through_span, cfg.cluster_min_points
+                    )
+                ):
+                    continue  # the laser saw through where the box says the person stands
                 sig_t = r * cfg.bearing_sigma_frac * bw[i] * 2.0 * np.pi / W
                 obs = _one(
                     xy,

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from studio.detect.laser.base import KIND_PAIR, LaserDetections
 from studio.errors import StudioError
-from studio.fuse.base import PersonObservations
+from studio.fuse.base import PersonObservations, ScanRays
 from studio.fuse.fusion import colours_hidden, fuse_frame
 from studio.geometry import EquirectCamera
 from studio.labels.base import LabelFrame, LabelPerson, as_box
@@ -166,10 +166,12 @@ def fuse_all(
             laser = laser.select(np.flatnonzero(keep))
             laser_z = laser_z[keep]
             ds = np.zeros(len(laser_z), bool)
-        pts = None
+        pts, rays = None, None
         if options.sources != "camera" and len(f.points):
             sel = np.isfinite(f.points[:, 0]) & ~ps
             pts = f.points[sel].astype(np.float64)
+            hit = np.isfinite(f.points[:, 0])
+            rays = ScanRays(f.origins[f.origin_of_point[hit]], f.points[hit, :2].astype(np.float64))
         obs = fuse_frame(
             f.image,
             laser,
@@ -177,6 +179,7 @@ def fuse_all(
             laser_z=laser_z,
             scan_points=pts,
             laser_static=ds if laser is not None else None,
+            rays=rays,
             config=options.fusion,
         )
         if f.image is not None:

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
 from studio.detect.image.base import ImageDetections
 from studio.detect.laser.base import LaserDetections
-from studio.fuse import FusionConfig, box_ranges, colours_hidden, fuse_frame
+from studio.fuse import FusionConfig, ScanRays, box_ranges, colours_hidden, fuse_frame
 from studio.geometry import EquirectCamera, Pose3
 
 W, H = 1920, 960
@@ -274,3 +276,38 @@ def test_colours_hidden_across_the_seam() -> None:
     assert colours_hidden(seam, CAM).tolist() == [True, False]
     alone = fuse_frame(dets(person(*back)), laser(back), camera=CAM)
     assert colours_hidden(alone, CAM).tolist() == [False]
+
+
+def rays(
+    origin: tuple[float, float], ranges: Callable[[np.ndarray], np.ndarray], fov_deg: float = 270.0
+) -> ScanRays:
+    """A 0.25° scanner at ``origin`` (facing +x) whose beam at bearing ``a`` returns at ``ranges(a)``."""
+    a = np.radians(np.arange(-fov_deg / 2, fov_deg / 2 + 1e-9, 0.25))
+    r = ranges(a)
+    o = np.asarray(origin, dtype=float)
+    ends = o + r[:, None] * np.c_[np.cos(a), np.sin(a)]
+    return ScanRays(np.tile(o, (len(a), 1)), ends)
+
+
+def test_a_box_the_laser_saw_through_makes_no_image_only_position() -> None:
+    # a box with no laser person and no scan cluster: an image-only position at (4, 1) from its foot row
+    box = dets(person(4.0, 1.0))
+    only = fuse_frame(box, None, camera=CAM)
+    assert only.source == ("image",)
+    bearing = float(np.arctan2(1.0, 4.0 - 0.4))
+    # every beam of the scanner at (0.4, 0) past that spot returns from a wall 9 m away: nobody stands there
+    wall = rays((0.4, 0.0), lambda a: np.full(a.shape, 9.0))
+    assert len(fuse_frame(box, None, camera=CAM, rays=wall).xy) == 0
+    # a door frame 0.2 m beside the spot (4 m away) is outside the narrow window: still seen through
+    door = rays((0.4, 0.0), lambda a: np.where(np.abs(a - bearing - 0.055) < 0.01, 3.75, 9.0))
+    assert len(fuse_frame(box, None, camera=CAM, rays=door).xy) == 0
+    # someone's legs there stop some of the beams: the position stays
+    person_there = rays((0.4, 0.0), lambda a: np.where(np.abs(a - bearing - 0.012) < 0.012, 3.68, 9.0))
+    assert fuse_frame(box, None, camera=CAM, rays=person_there).source == ("image",)
+    # the spot at the edge of the scanner's field of view: half the window unseen says nothing
+    edge = rays((0.4, 0.0), lambda a: np.full(a.shape, 9.0), fov_deg=2 * np.degrees(bearing))
+    assert fuse_frame(box, None, camera=CAM, rays=edge).source == ("image",)
+    # and the check can be turned off
+    assert fuse_frame(
+        box, None, camera=CAM, rays=wall, config=FusionConfig(see_through_halfwidth=0.0)
+    ).source == ("image",)
