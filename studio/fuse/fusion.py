@@ -295,7 +295,7 @@ def fuse_frame(
             if i in matched_boxes:
                 continue
             obs = None
-            gate = max(cfg.gate_range_min + 0.2, cfg.gate_sigma * br.sigma[i])  # NaN without a range
+            gate = max(cfg.gate_range_min + 0.2, cfg.gate_sigma * br.sigma[i])  # when the box has a range
             if len(u_p) and pts is not None:
                 off = _offset_in_box(u_p, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
                 sel = np.abs(off) <= cfg.cluster_core_frac
