@@ -168,9 +168,8 @@ def fuse_all(
             ds = np.zeros(len(laser_z), bool)
         pts, rays = None, None
         if options.sources != "camera" and len(f.points):
-            sel = np.isfinite(f.points[:, 0]) & ~ps
-            pts = f.points[sel].astype(np.float64)
             hit = np.isfinite(f.points[:, 0])
+            pts = f.points[hit & ~ps].astype(np.float64)
             rays = ScanRays(f.origins[f.origin_of_point[hit]], f.points[hit, :2].astype(np.float64))
         obs = fuse_frame(
             f.image,
