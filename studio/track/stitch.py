@@ -17,7 +17,9 @@ Longer gaps, up to ``reid_max_gap_s`` (someone who left the sensors' view and ca
 bridged by motion; such a pair is allowed by **appearance alone**: both tracklets are described by at
 least ``min_views`` observations, their whole-tracklet colours differ by at most
 ``reid_max_appearance`` and the distance is walkable (``max_speed · gap``). Its cost is
-``1 + d_app / reid_max_appearance``: a re-identification never beats a good motion bridge.
+``1 + d_app / reid_max_appearance``: a re-identification never beats a good motion bridge. Of the
+returns one lost person could make, the sooner is the likelier: each re-identification of A costs
+``reid_cost_per_min`` more for every minute it comes after A's soonest one.
 
 Without colours on both sides (a laser-only rig, someone the camera did not describe), a long gap, up to
 ``lost_max_gap_s``, is still bridged when both tracklets are long (``lost_min_duration_s``: a person, not
@@ -113,7 +115,16 @@ class StitchConfig:
             30 s, 35 → 46 switches but IDF1 0.736 → 0.816). Two tracklets whose joint colours differ by
             12–20 ΔE are two people more often than one (one person: 95 % under 6.5 ΔE,
             :mod:`studio.track.appearance`).
-        reid_max_gap_s: longest gap bridged by appearance alone, seconds (0: no re-identification).
+        reid_max_gap_s: longest gap bridged by appearance alone, seconds (0: no re-identification). Session
+            37: 60 → 90 s (with ``reid_cost_per_min``; see there).
+        reid_cost_per_min: how much more a re-identification of A costs per minute it comes after the
+            soonest re-identification A could make (0.2: a return a minute later must match A's colours
+            2 ΔE better to win). Session 37 (``docs/results.md``): with a 90 s window alone, ``rooms`` seed 1
+            joined a walker lost for 4.7 s to a piece of themselves 65 s later whose colours matched 0.6 ΔE
+            better, and the 4.7 s return began a second track of them (IDF1 0.889 → 0.817); with this
+            term ``rooms`` is as with 60 s and ``moving`` seeds 1–20 gain what the longer window gives.
+            It orders the returns of one person only: it does not raise a re-identification against a
+            motion link.
         reid_max_appearance: largest colour difference of a re-identification.
         min_views: a tracklet's colours count only when at least this many of its observations have a
             descriptor (one crop may show a neighbour or be half occluded).
@@ -152,8 +163,9 @@ class StitchConfig:
     max_speed: float = 2.5
     max_appearance: float = 25.0
     appearance_weight: float = 2.0
-    reid_max_gap_s: float = 60.0
+    reid_max_gap_s: float = 90.0
     reid_max_appearance: float = 10.0
+    reid_cost_per_min: float = 0.2
     min_views: int = 3
     unknown_appearance: float = 0.25
     miss_cost: float = 1.5
@@ -332,10 +344,33 @@ def _assign(
                 c = _pair_cost(a, b, cfg)
                 if c is not None:
                     cost[i, j], allowed[i, j] = c, True
+    if cfg.reid_cost_per_min > 0:
+        # Of the returns A could make after a long absence, the sooner is the likelier (the longer someone is
+        # away, the likelier a colour match is someone else): each re-identification of A costs more by the
+        # minutes it comes after A's soonest one.
+        for i, a in enumerate(ends):
+            gaps = {
+                j: g
+                for j, b in enumerate(starts)
+                if allowed[i, j] and (g := _reid_gap(a, b, cfg)) is not None
+            }
+            if gaps:
+                soonest = min(gaps.values())
+                for j, g in gaps.items():
+                    cost[i, j] += cfg.reid_cost_per_min * (g - soonest) / 60.0
     return [
         (ends[i].track_id, starts[j].track_id, float(cost[i, j]))
         for i, j in gnn_assign(cost, allowed, miss_cost=cfg.miss_cost)
     ]
+
+
+def _reid_gap(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
+    """The gap of B continuing A by colours alone (a re-identification), seconds, or None when an allowed
+    link of B to A would be another kind."""
+    gap = (b.start_ns - a.end_ns) * 1e-9
+    if gap <= cfg.max_gap_s or not (_described(a, cfg) and _described(b, cfg)):
+        return None
+    return gap if appearance_distance(a.app, b.app) <= cfg.reid_max_appearance else None  # type: ignore[arg-type]
 
 
 def _unjoin(

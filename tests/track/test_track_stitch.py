@@ -126,6 +126,20 @@ def test_re_identification_after_a_long_absence():
     assert stitch_links([a, far]) == []
 
 
+def test_of_two_returns_in_the_same_colours_the_sooner_one_continues():
+    # A is lost at t = 10 s; someone in A's colours appears 5 s later, and someone in colours a shade
+    # closer to A's a minute later (rooms seed 1: a walker lost for 4.7 s was joined to a piece of
+    # themselves 65 s later, and the 4.7 s return started a second track of them)
+    a = tl(0, 0.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    soon = tl(1, 15.0, 90.0, (2.0, 3.0), (5.0, 3.0), app=RED + 1.5)  # still there when the late one comes
+    late = tl(2, 75.0, 80.0, (2.0, -3.0), (5.0, -3.0), app=RED + 1.0)
+    assert stitch_links([a, soon, late]) == [(0, 1)]
+    # without the cost of time, the closer colours win
+    assert stitch_links([a, soon, late], config=StitchConfig(reid_cost_per_min=0.0)) == [(0, 2)]
+    # alone, the late one is still found again
+    assert stitch_links([a, late]) == [(0, 2)]
+
+
 def test_someone_hidden_for_long_is_found_again_near_where_they_were_lost():
     # no colours (a laser-only rig): A stands at the origin until t = 10 s, is hidden for 8 s, and a long
     # tracklet starts 0.8 m away; the limit there is lost_distance + lost_speed * 8 = 3 m
