@@ -29,13 +29,28 @@ def test_the_change_point_is_where_the_colours_change():
     assert colour_change(_colours((A, 5), (B, 5)), ColourCutConfig()) == 5  # views on each side suffice
 
 
+def test_a_few_views_at_either_end_are_cut_off_when_the_change_is_large():
+    # someone seen twice before walking out through a door, the one who walked in seen on (simulated
+    # moving seed 18 frame 150: two views, 36.7 ΔE)
+    far = B + np.array([0.0, 20.0, 0.0, 0.0, 0.0, 0.0])  # 50 ΔE from A
+    assert colour_change(_colours((A, 2), (far, 30)), ColourCutConfig()) == 2
+    assert colour_change(_colours((far, 30), (A, 3)), ColourCutConfig()) == 30
+    assert colour_change(_colours((A, 2), (far, 30)), ColourCutConfig(end_views=0)) is None
+
+
 @pytest.mark.parametrize(
     "runs",
     [
         ((A, 40),),  # one person
         ((A, 20), (A + np.array([0, 10, 0, 0, 0, 0]), 20)),  # the same person in other light
         ((A, 20), (B, 3), (A, 20)),  # a neighbour's colours for a few frames (a box paired wrongly)
-        ((A, 4), (B, 30)),  # too few views before the change
+        ((A, 4), (A + np.array([0, 20, 0, 0, 0, 0]), 30)),  # too few views before a change under 30 ΔE
+        ((A, 1), (B + np.array([0, 20, 0, 0, 0, 0]), 30)),  # one view before a large change
+        (
+            (A + np.array([0, 40, 0, 0, 0, 0]), 1),
+            (A, 1),
+            (B + np.array([0, 20, 0, 0, 0, 0]), 30),
+        ),  # two, unalike
     ],
 )
 def test_no_cut_without_a_lasting_change(runs):
@@ -190,6 +205,8 @@ def test_bad_options_are_refused():
         ColourCutConfig(min_change=0.0)
     with pytest.raises(ValueError, match="positive"):
         ColourCutConfig(views=0)
+    with pytest.raises(ValueError, match="end_views"):
+        ColourCutConfig(end_views=-1)
 
 
 def _change_by_brute_force(colours, cfg):
@@ -208,6 +225,23 @@ def _change_by_brute_force(colours, cfg):
         if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
             continue
         best = (change, m)
+    if best is None:  # at either end, end_views to views - 1 descriptors when the change is twice as large
+        for k in range(cfg.end_views or cfg.views, cfg.views):
+            for m in (k, len(colours) - k):
+                before, after = colours[:m], colours[m:]
+                if len(before) < k or len(after) < k or max(len(before), len(after)) < cfg.views:
+                    continue
+                meds = np.stack([np.median(before, axis=0), np.median(after, axis=0)])
+                change = appearance_matrix(meds[:1], meds[1:])[0, 0]
+                if change < 2 * cfg.min_change or (best is not None and change <= best[0]):
+                    continue
+                d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
+                if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
+                    continue
+                end, start = d_b[-cfg.views :], d_a[: cfg.views]
+                if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
+                    continue
+                best = (change, m)
     return None if best is None else best[1]
 
 
@@ -222,7 +256,11 @@ def test_the_change_point_is_the_definitions_on_random_sequences():
         ]
         colours = np.concatenate([c + rng.normal(0, s, (n, 6)) for c, n, s in runs])
         colours = np.round(colours, int(rng.integers(0, 3)))  # rounding makes ties between splits
-        cfg = ColourCutConfig(min_change=float(rng.choice([8.0, 15.0])), views=int(rng.choice([3, 5])))
+        cfg = ColourCutConfig(
+            min_change=float(rng.choice([8.0, 15.0])),
+            views=int(rng.choice([3, 5])),
+            end_views=int(rng.choice([0, 1, 2])),
+        )
         expected = _change_by_brute_force(colours, cfg)
         assert colour_change(colours, cfg) == expected
         found += expected is not None
