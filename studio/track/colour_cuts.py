@@ -159,7 +159,8 @@ def _cut_at(obs: Sequence[Observations], hits: Hits, config: ColourCutConfig) ->
         if app is not None and np.all(np.isfinite(app[r])):
             at.append(k)
             rows.append(app[r])
-    if len(rows) < config.views + (min(config.end_views, config.views) or config.views):
+    shortest = config.end_views if 0 < config.end_views < config.views else config.views  # a part's fewest
+    if len(rows) < config.views + shortest:
         return None
     m = colour_change(np.asarray(rows, dtype=np.float64), config)
     if m is None:

@@ -183,8 +183,20 @@ class StitchConfig:
     def __post_init__(self) -> None:
         if self.max_gap_s <= 0 or self.max_appearance <= 0 or self.reid_max_appearance <= 0:
             raise ValueError("max_gap_s, max_appearance and reid_max_appearance must be positive")
-        if min(self.reid_max_gap_s, self.lost_max_gap_s, self.lost_distance, self.lost_speed) < 0:
-            raise ValueError("reid_max_gap_s and the lost_* gap, distance and speed must not be negative")
+        if (
+            min(
+                self.reid_max_gap_s,
+                self.reid_cost_per_min,
+                self.lost_max_gap_s,
+                self.lost_distance,
+                self.lost_speed,
+            )
+            < 0
+        ):
+            raise ValueError(
+                "reid_max_gap_s, reid_cost_per_min, and the lost_* gap, distance and speed must not be "
+                "negative"
+            )
 
 
 def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:

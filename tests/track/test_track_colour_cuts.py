@@ -211,49 +211,46 @@ def test_bad_options_are_refused():
 
 def _change_by_brute_force(colours, cfg):
     """The definition, split by split with numpy's medians: the split of largest change that passes."""
-    best = None
-    for m in range(cfg.views, len(colours) - cfg.views + 1):
-        before, after = colours[:m], colours[m:]
-        meds = np.stack([np.median(before, axis=0), np.median(after, axis=0)])
-        change = appearance_matrix(meds[:1], meds[1:])[0, 0]
-        if change < cfg.min_change or (best is not None and change <= best[0]):
-            continue
-        d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
-        if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
-            continue
-        end, start = d_b[-cfg.views :], d_a[: cfg.views]
-        if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
-            continue
-        best = (change, m)
+
+    def passing(splits, min_change):
+        best = None
+        for m in splits:
+            before, after = colours[:m], colours[m:]
+            meds = np.stack([np.median(before, axis=0), np.median(after, axis=0)])
+            change = appearance_matrix(meds[:1], meds[1:])[0, 0]
+            if change < min_change or (best is not None and change <= best[0]):
+                continue
+            d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
+            if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
+                continue
+            end, start = d_b[-cfg.views :], d_a[: cfg.views]
+            if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
+                continue
+            best = (change, m)
+        return best
+
+    n = len(colours)
+    best = passing(range(cfg.views, n - cfg.views + 1), cfg.min_change)
     if best is None:  # at either end, end_views to views - 1 descriptors when the change is twice as large
-        for k in range(cfg.end_views or cfg.views, cfg.views):
-            for m in (k, len(colours) - k):
-                before, after = colours[:m], colours[m:]
-                if len(before) < k or len(after) < k or max(len(before), len(after)) < cfg.views:
-                    continue
-                meds = np.stack([np.median(before, axis=0), np.median(after, axis=0)])
-                change = appearance_matrix(meds[:1], meds[1:])[0, 0]
-                if change < 2 * cfg.min_change or (best is not None and change <= best[0]):
-                    continue
-                d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
-                if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
-                    continue
-                end, start = d_b[-cfg.views :], d_a[: cfg.views]
-                if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
-                    continue
-                best = (change, m)
+        ends = [
+            m for k in range(cfg.end_views or cfg.views, cfg.views) if n - k >= cfg.views for m in (k, n - k)
+        ]
+        best = passing(ends, 2 * cfg.min_change)
     return None if best is None else best[1]
 
 
 def test_the_change_point_is_the_definitions_on_random_sequences():
     rng = np.random.default_rng(3)
     C = A + np.array([0.0, 0.0, 25.0, 0.0, 10.0, 0.0])
-    found = 0
-    for _ in range(150):
+    found = by_ends = 0
+    for case in range(300):
         runs = [
             ([A, B, C][rng.integers(3)], int(rng.integers(1, 30)), float(rng.choice([1.0, 3.0, 8.0])))
             for _ in range(rng.integers(1, 4))
         ]
+        if case % 2:  # a short run at one end, the end rule's case
+            short = ([A, B + np.array([0, 20, 0, 0, 0, 0]), C][rng.integers(3)], int(rng.integers(1, 6)), 1.0)
+            runs = [short, *runs] if case % 4 == 1 else [*runs, short]
         colours = np.concatenate([c + rng.normal(0, s, (n, 6)) for c, n, s in runs])
         colours = np.round(colours, int(rng.integers(0, 3)))  # rounding makes ties between splits
         cfg = ColourCutConfig(
@@ -264,7 +261,9 @@ def test_the_change_point_is_the_definitions_on_random_sequences():
         expected = _change_by_brute_force(colours, cfg)
         assert colour_change(colours, cfg) == expected
         found += expected is not None
-    assert 20 < found < 130  # both outcomes were exercised
+        by_ends += expected != _change_by_brute_force(colours, replace(cfg, end_views=0))
+    assert 40 < found < 260  # both outcomes were exercised
+    assert by_ends > 10  # and the end rule decided in some
 
 
 def test_running_medians_are_numpys():

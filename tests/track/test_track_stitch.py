@@ -259,3 +259,9 @@ def test_a_tracklet_whose_last_observations_were_a_neighbours_is_continued_from_
     straight = np.column_stack([ts - 5.0, 0.0 * ts])
     plain = with_hits(tl(0, 0.0, 8.0, (-5.0, 0.0), (3.0, 0.0), app=RED), ts, straight)
     assert link_cuts([plain, b], stitch_links([plain, b])) == {}
+
+
+@pytest.mark.parametrize("field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s"])
+def test_negative_stitch_options_are_refused(field):
+    with pytest.raises(ValueError, match="must not be"):
+        StitchConfig(**{field: -1.0})
