@@ -44,6 +44,16 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _non_negative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
+    if not 0 <= v < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got '{text}'")
+    return v
+
+
 def _pattern(text: str) -> tuple[int, int]:
     try:
         cols, rows = (int(x) for x in text.lower().split("x"))
@@ -95,6 +105,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--laser-detector", default=None, help="detector name or a model file")
     p.add_argument("--no-rrd", action="store_true", help="do not write RUN/recording.rrd")
     p.add_argument("--export-frames", action="store_true", help="also write the labeled panoramas as JPEG")
+    p.add_argument(
+        "--min-walk",
+        type=_non_negative_float,
+        default=None,
+        metavar="M",
+        help="without the camera, keep only tracks that walked M metres somewhere (default 1; 0 also keeps "
+        "whoever stood still the whole recording, and the furniture)",
+    )
     p.add_argument(
         "--ground-truth", default=None, help="ground truth to log beside the labels (compare view)"
     )

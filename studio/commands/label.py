@@ -120,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         image_detector=args.image_detector,
         laser_detector=args.laser_detector,
         export_frames=args.export_frames,
+        **({} if args.min_walk is None else {"min_walk_m": args.min_walk}),
     )
     gt = Path(args.ground_truth) if args.ground_truth else None
     if gt is not None and not gt.is_file():

@@ -62,6 +62,13 @@ class LabelOptions:
             the camera saw it (as for ``min_camera_hits``) within this many seconds before or after; this
             cuts the stretches where a track left its person and followed laser clutter, s.
         min_track_s: tracks shorter than this are dropped, s.
+        min_walk_m: without the camera (laser-only rigs, ``sources=laser``), a track must somewhere walk this
+            far in one stretch of observations (no gap over 0.5 s, positions median-filtered over
+            five observations: the diameter of the stretch), else it is dropped as laser clutter: chair and
+            table legs a moving robot sees too briefly for the static map to judge stand still, and a track
+            that hops between them does so across gaps. Offline, the whole track counts, so someone who
+            walked in and then stood is kept throughout; someone who stood still for the whole recording
+            is not (without a camera, nothing tells them from furniture). 0 turns this off, m.
         fusion: association parameters.
         tracking: offline tracking parameters (online UKF pass, stitching, smoothing).
         recover_radius: after a first tracking pass, a track that has no observation in a frame takes the
@@ -81,6 +88,7 @@ class LabelOptions:
     min_camera_hits: int = 3
     camera_support_s: float = 3.0
     min_track_s: float = 1.0
+    min_walk_m: float = 1.0
     fusion: FusionConfig = field(default_factory=FusionConfig)
     tracking: OfflineConfig = field(default_factory=lambda: PIPELINE_TRACKING)
     recover_radius: float = 0.35
@@ -91,6 +99,8 @@ class LabelOptions:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.sources not in SOURCES_OPTIONS:
             raise ValueError(f"sources must be one of {SOURCES_OPTIONS}, got {self.sources!r}")
+        if not self.min_walk_m >= 0.0:
+            raise ValueError(f"min_walk_m must be a finite distance >= 0, got {self.min_walk_m}")
 
     def as_dict(self) -> dict[str, Any]:
         from dataclasses import asdict

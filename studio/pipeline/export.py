@@ -125,6 +125,11 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "- Someone who stands on one spot for most of the time the laser sees it may be filtered out as "
         "structure, unless the laser saw the spot empty from within 4 m while the robot moved.",
     ]
+    if (cam is None or options.sources == "laser") and options.min_walk_m > 0:
+        lines.append(
+            f"- Without the camera a track is kept only if it walked {options.min_walk_m:g} m somewhere "
+            "(furniture stands still): someone who stood still for the whole recording is not labelled."
+        )
     if any("oracle" in n for n in result.notes) or (options.image_detector or "").startswith("oracle"):
         lines.append("- Boxes come from the ORACLE detector (ground truth with noise): simulated data only.")
     return "\n".join(lines) + "\n"

@@ -45,6 +45,7 @@ _BODY_MIN_SCANS = 20  # ... judged once that scanner has this many scans in its 
 _SEGMENT_SHARE = 0.7  # a detection is on structure / the body when this share of its points is
 _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
 _CAMERA_SEEN_M = 0.3  # a camera observation no track took vouches for a track this near (camera gate)
+_WALK_GAP_S, _WALK_MEDIAN = 0.5, 5  # a stretch of a track (min_walk_m) ends at a gap this long, s; smoothing
 _CAMERA_TAIL_BACK_S = 1.0  # with a camera, stitching's take-over looks back this far (see tracking_config)
 _PAIR_ON_STRUCTURE, _PAIR_SPREAD = 0.2, 0.35  # a leg pair with this share of its points on structure, ...
 # ... that far (m) from its other points, paired a leg with a chair leg or a corner
@@ -353,6 +354,41 @@ def tracking_config(options: LabelOptions, *, has_camera: bool) -> Any:
     return replace(cfg, tracker=tracker, split_gap_s=max(cfg.split_gap_s, 1.5 * period))
 
 
+def longest_walk(observed: list[tuple[int, float, float]]) -> float:
+    """How far a track walked in one stretch: the largest diameter, m, of its observed positions
+    ``(stamp_ns, x, y)`` (in time order) between gaps longer than ``_WALK_GAP_S``, each stretch's positions
+    median-filtered over ``_WALK_MEDIAN`` observations first (a track that jitters or hops between two
+    chair legs in one stretch does not walk); stretches of fewer observations than that count 0."""
+    from scipy.ndimage import median_filter
+
+    if len(observed) < _WALK_MEDIAN:
+        return 0.0
+    a = np.asarray(observed, dtype=np.float64)
+    cuts = np.flatnonzero(np.diff(a[:, 0]) > _WALK_GAP_S * 1e9) + 1
+    best = 0.0
+    for run in np.split(a[:, 1:], cuts):
+        if len(run) < _WALK_MEDIAN:
+            continue
+        xy = median_filter(run, size=(_WALK_MEDIAN, 1), mode="nearest")
+        best = max(best, _diameter(xy))
+    return best
+
+
+def _diameter(xy: FloatArray) -> float:
+    """The largest distance between two of the points ``(N, 2)``, N ≥ 2 (on the convex hull's vertices: a
+    track of a whole recording has thousands of points)."""
+    from scipy.spatial import ConvexHull, QhullError
+    from scipy.spatial.distance import pdist
+
+    if len(xy) > 64:
+        try:
+            xy = xy[ConvexHull(xy).vertices]
+        except QhullError:  # all on one line (or one point): the farthest from the farthest is an end
+            far = xy[np.argmax(np.hypot(*(xy - xy[0]).T))]
+            return float(np.hypot(*(xy - far).T).max())
+    return float(pdist(xy).max())
+
+
 def track_all(
     frames: list[PerceptionFrame],
     fused: list[FrameResult],
@@ -410,11 +446,20 @@ def track_all(
                 camera = bool(np.min(np.hypot(*(seen - p.xy).T)) <= _CAMERA_SEEN_M)
             if camera:
                 camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
+    walk_gate = options.min_walk_m > 0 and (not has_camera or options.sources == "laser")
+    observed: dict[int, list[tuple[int, float, float]]] = {}
+    if walk_gate:
+        for fr, tf in zip(fused, result.frames, strict=True):
+            for p in tf.points:
+                if p.det_index >= 0:
+                    observed.setdefault(p.track_id, []).append((fr.stamp_ns, float(p.xy[0]), float(p.xy[1])))
     keep = set()
     for tid, stamps in span.items():
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
             continue
         if camera_gate and len(camera_hits.get(tid, ())) < options.min_camera_hits:
+            continue
+        if walk_gate and longest_walk(observed.get(tid, [])) < options.min_walk_m:
             continue
         keep.add(tid)
     support = {tid: np.array(v, dtype=np.int64) for tid, v in camera_hits.items()}

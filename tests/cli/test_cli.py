@@ -38,6 +38,26 @@ def test_bad_option_value_exits_2(capsys) -> None:
     assert "positive" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("value", ["-1", "nan", "inf", "far"])
+def test_a_bad_min_walk_exits_2(capsys, value: str) -> None:
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["label", "r.bag", "--rig", "r.yaml", "--out", "run", "--min-walk", value])
+    assert exc.value.code == 2
+    assert "--min-walk" in capsys.readouterr().err
+
+
+def test_min_walk_reaches_the_options(tmp_path, monkeypatch) -> None:
+    import studio.commands.label as label
+
+    seen = []
+    done = {"counts": {"frames": 0, "tracks": 0, "observations": 0}, "wall_s": 0.0, "notes": []}
+    monkeypatch.setattr(label, "run_label", lambda *a, **k: seen.append(k["options"]) or done)
+    cmd = ["label", "r.bag", "--rig", "rig.yaml", "--out", str(tmp_path / "run")]
+    assert label.run(build_parser().parse_args(cmd)) == 0
+    assert label.run(build_parser().parse_args([*cmd, "--min-walk", "0"])) == 0
+    assert [o.min_walk_m for o in seen] == [1.0, 0.0]
+
+
 def test_user_error_is_one_line_exit_2(tmp_path, capsys) -> None:
     code = main(["evaluate", str(tmp_path / "missing.jsonl"), str(tmp_path / "gt.jsonl")])
     err = capsys.readouterr().err

@@ -4,6 +4,7 @@ the labels, a dataset card)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -91,3 +92,9 @@ def test_the_dataset_card_names_the_leg_model_of_each_laser(step: float, model: 
 
 def test_the_dataset_card_of_a_rig_without_a_camera_says_laser_only() -> None:
     assert "sources `both` (the rig has no camera: laser only)" in _card(LabelOptions(), [], {})
+
+
+def test_the_dataset_card_of_a_laser_only_run_says_who_stood_still_is_missing() -> None:
+    limit = "a track is kept only if it walked 1 m somewhere"
+    assert limit in _card(LabelOptions(), [], {})
+    assert limit not in _card(replace(LabelOptions(), min_walk_m=0.0), [], {})
