@@ -79,7 +79,7 @@ def real() -> None:
           f"{1e3 * info['timings_s']['scan_matching'] / len(frames):.1f} ms/frame")  # fmt: skip
     img = np.full((800, 1600, 3), 255, np.uint8)
     for k, (name, get) in enumerate(
-        (("robot taken as static", lambda f: f.robot_pose), ("scan matching", lambda f: f.world_pose))
+        (("robot taken as static", lambda f: Pose2()), ("scan matching", lambda f: f.world_pose))
     ):
         for f in frames[::3]:
             p = get(f).apply(f.points[np.isfinite(f.points[:, 0]), :2].astype(np.float64))

@@ -188,8 +188,8 @@ class _Motion:
         tol = tf.tolerance_ns if tf is not None else 100_000_000
         if cfg is None:
             report.warn(
-                "the rig has no odometry: robot_pose = identity (studio label's scan matching estimates the "
-                "motion from the lasers)"
+                "the rig has no odometry: studio label's scan matching estimates the motion from the lasers "
+                "(the labels' robot_pose and odom positions are in its frame)"
             )
         elif cfg.topic is not None:
             topic = _check_topic(rec, cfg.topic, "odometry", _ODOM_TYPES)

@@ -48,7 +48,8 @@ class LabelOptions:
         static_filter: suppress laser detections on structure that never moves (world-frame map).
         scan_matching: correct the odometry's drift by matching each frame's scans to the recent ones
             (:mod:`studio.geometry.scan_match`; without odometry it is the robot's only motion estimate); the
-            static map and the tracker work in the corrected frame, the outputs stay in the odometry frame.
+            static map and the tracker work in the corrected frame, the outputs stay in the odometry frame
+            (on a rig without odometry, scan matching's).
         min_camera_hits: on rigs with a camera and ``sources=both``, a track must be confirmed by the camera
             (a fused or image observation, or a laser one ``beside-box``: inside a box that took someone
             beside it, see ``FusionConfig.beside_box_range``; or, in a frame, a fused or image observation

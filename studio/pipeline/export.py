@@ -94,7 +94,8 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         lines.append(f"- odometry: {odo}" + (", drift corrected by scan matching" if matched else ""))
     else:
         lines.append(
-            "- odometry: none; the robot's motion from scan matching"
+            "- odometry: none; the robot's motion from scan matching (the odom positions are in its frame, "
+            "the first frame's pose its origin)"
             if matched
             else "- odometry: none (static robot assumed)"
         )

@@ -103,7 +103,7 @@ class PerceptionFrame:
 
     index: int
     stamp_ns: int
-    robot_pose: Pose2
+    robot_pose: Pose2  # T_odom_base; on a rig without odometry scan matching's pose (identity when it is off)
     image: Any | None  # ImageDetections
     appearance: NDArray[np.float32] | None  # (n_boxes, D)
     laser: LaserDetections | None  # base frame, segments index into `points`
@@ -423,6 +423,8 @@ def perceive(
                 pf.track_pose = matcher.step(
                     off_people(points, laser), frame.robot_pose if has_odometry else None
                 )
+                if not has_odometry:  # the robot's only motion: the outputs' odom frame is scan matching's
+                    pf.robot_pose = pf.track_pose
                 t_match += time.perf_counter() - t3
                 t3 = time.perf_counter()
             if static_map is not None:
