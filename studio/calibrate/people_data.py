@@ -215,10 +215,11 @@ def _laser(rec: Any, rig: Any, detector: Any, period_ns: int) -> LaserPeople:
             last, rp = fr.stamp_ns, fr.robot_pose
             parts, odom = [], []
             for sib in fr.scans:
-                m = sib.sensor_pose.to_pose2()
-                base = m.apply(np.nan_to_num(sib.scan.points()))
-                base[~sib.scan.valid()] = np.nan
-                parts.append((base, sib.scan.valid(), m.apply(np.zeros(2))))
+                pose, pts, valid = sib.upright()
+                m = pose.to_pose2()
+                base = m.apply(np.nan_to_num(pts))
+                base[~valid] = np.nan
+                parts.append((base, valid, m.apply(np.zeros(2))))
                 odom.append(rp.apply(base))
                 yield odom[-1], rp.apply(m.apply(np.zeros(2)))
             det = detector.detect_scans(parts) if parts else None

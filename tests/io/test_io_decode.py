@@ -147,6 +147,26 @@ def test_base_types_are_checked() -> None:
     np.testing.assert_allclose(sib.points_base(), [[0, 0, 0.5], [1, -2, 0.5]], atol=1e-7)
 
 
+@pytest.mark.parametrize("roll", [0.0, np.pi, -np.pi + 0.05, 0.05])
+@pytest.mark.parametrize("step", [0.01, -0.01])
+def test_a_scanner_upside_down_is_turned_upright(roll: float, step: float) -> None:
+    """Its points, mapped with the planar pose of :meth:`ScanInBase.upright`, land where the 3-D pose puts
+    them; their order is reversed when the scanner was upside down, so the beams keep their sense."""
+    from studio.geometry.se import Pose3
+
+    rng = np.random.default_rng(1)
+    ranges = rng.uniform(0.5, 5.0, 300).astype(np.float32)
+    ranges[::7] = np.nan
+    scan = LaserScan(1, "l", -1.5 * np.sign(step), step, ranges, 0.1, 10.0)
+    sib = ScanInBase("/s", scan, Pose3.from_xyz_rpy(0.3, -0.2, 0.4, roll, 0.0, 2.0))
+    pose, pts, valid = sib.upright()
+    assert pose.R[2, 2] > 0.9
+    flat = pose.to_pose2().apply(pts[valid])
+    np.testing.assert_allclose(flat, sib.points_base()[:, :2][:: -1 if abs(roll) > 1 else 1], atol=0.03)
+    (x0, y0), (x1, y1) = pts[valid][:2]
+    assert np.sign(x0 * y1 - y0 * x1) == np.sign(step)  # the beams turn the way the scan's step says
+
+
 def test_odometry_and_tf_shapes() -> None:
     q = NS(x=0.0, y=0.0, z=np.sin(0.25), w=np.cos(0.25))
     ros = NS(header=NS(stamp=_stamp(7), frame_id="/odom"), child_frame_id="/base_link",
