@@ -216,23 +216,29 @@ class ScanInBase:
             raise TypeError("ScanInBase needs a LaserScan and a Pose3")
 
     def upright(self) -> tuple[Pose3, NDArray[np.float64], NDArray[np.bool_]]:
-        """The scan as a scanner at the same place mounted the right way up would give it.
+        """The scan as a scanner at the same place, mounted the right way up and turning counter-clockwise,
+        would give it.
 
         A scanner mounted upside down (its z axis pointing down, as many robots carry them) sees the plane
         mirrored: a planar pose of it cannot map its points to the base frame. Turned over about its x axis
-        it is upright again; its points' y changes sign and their order is reversed, so the beams keep
-        turning the way they turned.
+        it is upright again, and its points' y changes sign. The beams are then put in counter-clockwise
+        order (seen from above), whichever way the scanner turned, so a detector sees the same scan from any
+        mounting and any driver (some write a negative ``angle_increment``).
 
         Returns:
             ``T_base_scanner`` of the upright scanner (its z axis up; ``to_pose2`` maps its points to the
-            base plane), the beams' end points ``(N, 2)`` in its frame (NaN where invalid) and the
-            validity mask ``(N,)``; for a scanner mounted upright, ``sensor_pose`` and the scan's own.
+            base plane), the beams' end points ``(N, 2)`` in its frame (NaN where invalid), counter-clockwise,
+            and their validity mask ``(N,)``; for an upright scanner with a positive step, ``sensor_pose``
+            and the scan's own.
         """
         pose, pts, valid = self.sensor_pose, self.scan.points(), self.scan.valid()
-        if pose.R[2, 2] >= 0.0:
-            return pose, pts, valid
-        flipped = pose.compose(Pose3(np.diag([1.0, -1.0, -1.0]), np.zeros(3)))
-        return flipped, pts[::-1] * np.array([1.0, -1.0]), valid[::-1]
+        flipped = bool(pose.R[2, 2] < 0.0)
+        if flipped:
+            pose = pose.compose(Pose3(np.diag([1.0, -1.0, -1.0]), np.zeros(3)))
+            pts = pts * np.array([1.0, -1.0])
+        if (self.scan.angle_increment < 0.0) != flipped:
+            pts, valid = pts[::-1], valid[::-1]
+        return pose, pts, valid
 
     def points_base(self) -> NDArray[np.float64]:
         """Valid beam end points (M, 3), metres, in the base frame at the frame stamp."""

@@ -162,10 +162,11 @@ def test_labels_find_the_labelled_people_of_real_scans(
     assert tp / (tp + fp) >= precision
 
 
-def _first_scans(src: Path, dst: Path, n_scans: int, *, upside_down: bool) -> None:
-    """The first ``n_scans`` scans of ``src``; ``upside_down``: as a scanner at the same place mounted
-    upside down records them (it sees the plane mirrored: the same beams in reverse order, over negated
-    angles)."""
+def _first_scans(src: Path, dst: Path, n_scans: int, *, how: str = "as recorded") -> None:
+    """The first ``n_scans`` scans of ``src``: ``as recorded``; ``upside down``, as a scanner at the same
+    place mounted upside down records them (it sees the plane mirrored: the same beams in reverse order,
+    over negated angles); ``clockwise``, as a driver that writes a negative ``angle_increment`` does (the
+    same beams in reverse order, from the last angle)."""
     from rosbags.rosbag1 import Reader, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -178,30 +179,43 @@ def _first_scans(src: Path, dst: Path, n_scans: int, *, upside_down: bool) -> No
         for k, (c, t, raw) in enumerate(reader.messages()):
             if k == n_scans:
                 break
-            if upside_down:
+            if how != "as recorded":
                 m = store.deserialize_ros1(raw, c.msgtype)
-                flip = {"ranges": np.ascontiguousarray(m.ranges[::-1])}
+                turn = {"ranges": np.ascontiguousarray(m.ranges[::-1])}
                 if len(m.intensities) == len(m.ranges):
-                    flip["intensities"] = np.ascontiguousarray(m.intensities[::-1])
-                m = replace(m, angle_min=-m.angle_max, angle_max=-m.angle_min, **flip)
+                    turn["intensities"] = np.ascontiguousarray(m.intensities[::-1])
+                if how == "upside down":
+                    m = replace(m, angle_min=-m.angle_max, angle_max=-m.angle_min, **turn)
+                else:
+                    m = replace(
+                        m,
+                        angle_min=m.angle_max,
+                        angle_max=m.angle_min,
+                        angle_increment=-m.angle_increment,
+                        **turn,
+                    )
                 raw = store.serialize_ros1(m, c.msgtype)
             writer.write(out[c.id], t, raw)
 
 
-def test_a_scanner_mounted_upside_down_gives_the_same_labels(shared_data: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize(("how", "roll"), [("upside down", "3.141592653589793"), ("clockwise", "0.0")])
+def test_a_scanner_upside_down_or_turning_clockwise_gives_the_same_labels(
+    shared_data: Path, tmp_path: Path, how: str, roll: str
+) -> None:
     """Many robots carry their scanners upside down (the rig or TF says roll = π): the people are where
-    the upright scanner puts them, not mirrored (they were, F1 0.05 against the upright labels)."""
+    the upright scanner puts them, not mirrored (they were: F1 0.05 against the upright labels); and a
+    driver's negative beam step changes nothing (it changed a few detections)."""
     src = shared_data / "demo_stationary_simple_environment.bag"
-    first, flipped = tmp_path / "first.bag", tmp_path / "flipped.bag"
-    _first_scans(src, first, 400, upside_down=False)
-    _first_scans(src, flipped, 400, upside_down=True)
-    upright_rig, flipped_rig = tmp_path / "upright.yaml", tmp_path / "flipped.yaml"
+    first, other = tmp_path / "first.bag", tmp_path / "other.bag"
+    _first_scans(src, first, 400)
+    _first_scans(src, other, 400, how=how)
+    upright_rig, other_rig = tmp_path / "upright.yaml", tmp_path / "other.yaml"
     upright_rig.write_text("base_frame: base_link\nlasers:\n  - topic: /scan\n    pose: {z: 0.3}\n")
-    flipped_rig.write_text(
-        "base_frame: base_link\nlasers:\n  - topic: /scan\n    pose: {z: 0.3, roll: 3.141592653589793}\n"
+    other_rig.write_text(
+        f"base_frame: base_link\nlasers:\n  - topic: /scan\n    pose: {{z: 0.3, roll: {roll}}}\n"
     )
     upright = label_recording(first, load_rig(upright_rig), options=LabelOptions(sources="laser"))
-    turned = label_recording(flipped, load_rig(flipped_rig), options=LabelOptions(sources="laser"))
+    turned = label_recording(other, load_rig(other_rig), options=LabelOptions(sources="laser"))
     a = {f.stamp_ns: sorted((round(p.x, 3), round(p.y, 3)) for p in f.people) for f in upright.labels}
     b = {f.stamp_ns: sorted((round(p.x, 3), round(p.y, 3)) for p in f.people) for f in turned.labels}
     assert len(b) == 400
