@@ -125,7 +125,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("view", help="open a run in the Rerun viewer with a blueprint")
     p.add_argument("run", help="run directory or .rrd file")
-    p.add_argument("--blueprint", default="review", help="review | calibration | compare")
+    p.add_argument(
+        "--blueprint",
+        default=None,
+        help="review | laser | calibration | compare (default: review, laser for a run without images)",
+    )
     p.add_argument("--web", action="store_true", help="serve the web viewer instead of the native one")
     p.add_argument("--screenshot", default=None, help="render headless and save a PNG screenshot")
 

@@ -4,25 +4,37 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import shutil
 import signal
 from pathlib import Path
 
 from studio.errors import StudioError
 
-__all__ = ["run"]
+__all__ = ["default_blueprint", "run"]
+
+
+def default_blueprint(rrd: Path) -> str:
+    """``laser`` for a run without camera images (its ``run.json`` beside the recording says so), else
+    ``review``."""
+    try:
+        info = json.loads((rrd.parent / "run.json").read_text())
+    except (OSError, ValueError):
+        return "review"
+    no_images = isinstance(info, dict) and "image_size" in info and info["image_size"] is None
+    return "laser" if no_images else "review"
 
 
 def run(args: argparse.Namespace) -> int:
     from studio.viz.blueprints import BLUEPRINTS
     from studio.viz.viewer import open_native, resolve_rrd, screenshot, serve_web
 
-    name = args.blueprint or "review"
-    if name not in BLUEPRINTS:
-        raise StudioError(f"unknown blueprint '{name}' (known: {', '.join(BLUEPRINTS)})")
+    if args.blueprint is not None and args.blueprint not in BLUEPRINTS:
+        raise StudioError(f"unknown blueprint '{args.blueprint}' (known: {', '.join(BLUEPRINTS)})")
     if args.web and args.screenshot:
         raise StudioError("--web and --screenshot exclude each other")
     rrd = resolve_rrd(args.run)
+    name = args.blueprint or default_blueprint(rrd)
     if args.screenshot:
         res = screenshot(rrd, Path(args.screenshot), blueprint_name=name)
         print(f"screenshot of {rrd} with blueprint '{name}' → {res.png}")

@@ -99,6 +99,29 @@ def review_blueprint() -> rrb.Blueprint:
     )
 
 
+def laser_blueprint() -> rrb.Blueprint:
+    """A run without camera images (a laser-only rig): the bird's-eye view large, the scans around the
+    robot in its own frame, metrics plots — none of the review's empty panorama and face views."""
+    root = rrb.Horizontal(
+        _birds_eye("bird's eye (odom frame)", ["$origin/**", f"- {ep.ODOM}/errors"]),
+        rrb.Vertical(
+            _birds_eye("laser (base frame)", ["$origin/**"], origin=ep.ROBOT),
+            rrb.Tabs(
+                rrb.TimeSeriesView(origin=f"{ep.METRICS}/counts", name="counts"),
+                rrb.TimeSeriesView(origin=f"{ep.METRICS}/eval", name="metrics vs ground truth"),
+                name="metrics",
+            ),
+            row_shares=[1.2, 1.0],
+        ),
+        column_shares=[2.0, 1.0],
+    )
+    return rrb.Blueprint(
+        _stable_ids("laser", root),
+        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
+        collapse_panels=True,
+    )
+
+
 def calibration_blueprint() -> rrb.Blueprint:
     """Scan points and laser detections projected over the panorama and the faces; residual plots."""
     pano = ["$origin", "$origin/scan/**", "$origin/laser_people", "$origin/boxes"]
@@ -164,6 +187,7 @@ def compare_blueprint() -> rrb.Blueprint:
 
 BLUEPRINTS: dict[str, Callable[[], rrb.Blueprint]] = {
     "review": review_blueprint,
+    "laser": laser_blueprint,
     "calibration": calibration_blueprint,
     "compare": compare_blueprint,
 }

@@ -24,7 +24,7 @@ def test_committed_blueprints_match_the_code(tmp_path: Path) -> None:
 
 
 def test_generator_is_stable_and_checks(tmp_path: Path) -> None:
-    assert len(write_blueprints(tmp_path)) == 3
+    assert len(write_blueprints(tmp_path)) == 4
     assert write_blueprints(tmp_path) == []  # unchanged descriptions: nothing rewritten
     assert main(["--check", str(tmp_path)]) == 0
     (tmp_path / "compare.rbl").unlink()
@@ -43,5 +43,5 @@ def test_describe_names_views() -> None:
 
 
 def test_unknown_blueprint_lists_names() -> None:
-    with pytest.raises(StudioError, match="review, calibration, compare"):
+    with pytest.raises(StudioError, match="review, laser, calibration, compare"):
         blueprint("nope")

@@ -48,7 +48,7 @@ def test_truncated_rrd_and_empty_run_dir(tmp_path: Path, capsys: pytest.CaptureF
 
 def test_unknown_blueprint_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["view", str(tmp_path), "--blueprint", "nope"]) == 2
-    assert "known: review, calibration, compare" in capsys.readouterr().err
+    assert "known: review, laser, calibration, compare" in capsys.readouterr().err
 
 
 def _viewer_available() -> bool:
@@ -72,6 +72,7 @@ def test_headless_screenshot_every_blueprint(tmp_path: Path) -> None:
     vs.log_run(tmp_path / "recording.rrd", syn, ground_truth=syn.gt_path, faces_every=2)
     expected = {
         "review": {"panorama", "bird's eye (odom frame)", "face front", "counts"},
+        "laser": {"bird's eye (odom frame)", "laser (base frame)", "counts"},
         "calibration": {"panorama: projected laser", "residuals (px)", "face back"},
         "compare": {
             "auto (tracks) vs manual (GT)",
@@ -87,6 +88,26 @@ def test_headless_screenshot_every_blueprint(tmp_path: Path) -> None:
         assert {"frame", "time"} <= set(res.timelines)
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert png.stat().st_size > 20_000
+
+
+@pytest.mark.parametrize(
+    ("run_json", "name"),
+    [
+        ('{"image_size": null}', "laser"),  # no camera images: a laser-only rig or --sources laser
+        ('{"image_size": [1920, 960]}', "review"),
+        ("{}", "review"),
+        ("not json", "review"),
+        (None, "review"),  # an .rrd without its run directory
+    ],
+)
+def test_a_run_without_images_opens_with_the_laser_blueprint(
+    tmp_path: Path, run_json: str | None, name: str
+) -> None:
+    from studio.commands.view import default_blueprint
+
+    if run_json is not None:
+        (tmp_path / "run.json").write_text(run_json)
+    assert default_blueprint(tmp_path / "recording.rrd") == name
 
 
 def test_native_viewer_without_display_is_a_user_error(
