@@ -46,6 +46,9 @@ class UkfTrackerConfig:
         confirm_hits: M, hits needed to confirm a tentative track ...
         confirm_window_s: ... within this many seconds of its birth; a tentative track still short of M
             hits is deleted at the first frame after that (0.45 s: 3 of the first 5 frames at 10 Hz).
+        confirm_min_span_s: ... and its hits must span at least this long (birth to the confirming hit),
+            seconds: M hits of a 40 Hz scanner come within 50 ms, too soon to tell a person from a leg or
+            clutter that a 10 Hz sensor (M = 3: 0.2 s) would have had to follow longer. 0: hits alone.
         tentative_max_coast_s: a tentative track unobserved for longer than this is deleted, seconds.
         max_coast_s: a confirmed track unobserved for longer than this is deleted, seconds.
         birth_min_separation_m: an unmatched observation closer than this to a confirmed track's position
@@ -77,6 +80,7 @@ class UkfTrackerConfig:
     use_logdet: bool = True
     confirm_hits: int = 3
     confirm_window_s: float = 0.45
+    confirm_min_span_s: float = 0.0
     tentative_max_coast_s: float = 0.5
     max_coast_s: float = 2.0
     birth_min_separation_m: float = 0.25
@@ -95,6 +99,8 @@ class UkfTrackerConfig:
     def __post_init__(self) -> None:
         if self.confirm_hits < 1 or not self.confirm_window_s >= 0:
             raise ValueError("need confirm_hits >= 1 and confirm_window_s >= 0")
+        if not 0 <= self.confirm_min_span_s <= self.confirm_window_s:
+            raise ValueError("need 0 <= confirm_min_span_s <= confirm_window_s")
         if self.accel_sigma <= 0 or self.init_speed_sigma <= 0:
             raise ValueError("accel_sigma and init_speed_sigma must be positive")
         if self.max_coast_s < 0 or self.tentative_max_coast_s < 0:
@@ -306,7 +312,8 @@ class UkfTracker:
         t.last_hit_ns = obs.stamp_ns
         if t.state == "tentative":
             t.hits += 1
-            if t.hits >= cfg.confirm_hits:
+            span_s = (obs.stamp_ns - t.birth_ns) * 1e-9
+            if t.hits >= cfg.confirm_hits and span_s >= cfg.confirm_min_span_s - 1e-6:
                 t.state = "confirmed"
         else:
             t.state = "confirmed"
@@ -346,7 +353,7 @@ class UkfTracker:
                 if obs.appearance is None or not np.all(np.isfinite(obs.appearance[row]))
                 else obs.appearance[row].copy(),
             )
-            if cfg.confirm_hits <= 1:
+            if cfg.confirm_hits <= 1 and cfg.confirm_min_span_s <= 0:
                 t.state = "confirmed"
             self._next_id += 1
             self._tracks.append(t)

@@ -37,6 +37,24 @@ def test_config_is_checked():
         UkfTrackerConfig(confirm_window_s=float("nan"))
     with pytest.raises(ValueError, match="probability"):
         UkfTrackerConfig(gate_prob=1.5)
+    with pytest.raises(ValueError, match="confirm_min_span_s"):
+        UkfTrackerConfig(confirm_min_span_s=0.5, confirm_window_s=0.45)
+    with pytest.raises(ValueError, match="confirm_min_span_s"):
+        UkfTrackerConfig(confirm_min_span_s=-0.1)
+
+
+@pytest.mark.parametrize(("hz", "confirmed_at"), [(10, 2), (40, 8), (7.5, 2)])
+def test_confirming_hits_must_span_the_minimum_time(hz: float, confirmed_at: int) -> None:
+    """Three hits of a 40 Hz scanner come within 50 ms: with a 0.18 s span the track is confirmed by its
+    9th hit (0.2 s after the first) instead of its 3rd; at 10 Hz and slower the 3rd hit spans it already."""
+    cfg = UkfTrackerConfig(confirm_hits=3, confirm_window_s=0.45, confirm_min_span_s=0.18)
+    tr = UkfTracker(config=cfg)
+    got = []
+    for k in range(confirmed_at + 2):
+        tr.step(obs(k / hz, (0.01 * k, 0.0)))
+        got.append(states(tr)[0])
+    assert got.index("confirmed") == confirmed_at
+    assert set(got[confirmed_at:]) == {"confirmed"}
 
 
 def test_single_clutter_hit_dies_tentative():
