@@ -108,7 +108,7 @@ class LabelOptions:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.sources not in SOURCES_OPTIONS:
             raise ValueError(f"sources must be one of {SOURCES_OPTIONS}, got {self.sources!r}")
-        if not self.min_walk_m >= 0.0:
+        if not 0.0 <= self.min_walk_m < float("inf"):
             raise ValueError(f"min_walk_m must be a finite distance >= 0, got {self.min_walk_m}")
 
     def as_dict(self) -> dict[str, Any]:

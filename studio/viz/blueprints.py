@@ -73,6 +73,23 @@ def _panorama(name: str, contents: list[str]) -> rrb.Spatial2DView:
     return rrb.Spatial2DView(origin=ep.PANORAMA, name=name, contents=contents)
 
 
+def _metrics() -> rrb.Tabs:
+    return rrb.Tabs(
+        rrb.TimeSeriesView(origin=f"{ep.METRICS}/counts", name="counts"),
+        rrb.TimeSeriesView(origin=f"{ep.METRICS}/eval", name="metrics vs ground truth"),
+        name="metrics",
+    )
+
+
+def _blueprint(name: str, root: rrb.Container) -> rrb.Blueprint:
+    """The layout ``root`` with stable ids, the time panel collapsed on the frame timeline."""
+    return rrb.Blueprint(
+        _stable_ids(name, root),
+        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
+        collapse_panels=True,
+    )
+
+
 def review_blueprint() -> rrb.Blueprint:
     """Panorama with boxes and projected scan; bird's-eye 3D view; cube faces; metrics plots."""
     root = rrb.Vertical(
@@ -83,20 +100,12 @@ def review_blueprint() -> rrb.Blueprint:
         ),
         rrb.Horizontal(
             rrb.Grid(*_faces(), grid_columns=4, name="cube faces"),
-            rrb.Tabs(
-                rrb.TimeSeriesView(origin=f"{ep.METRICS}/counts", name="counts"),
-                rrb.TimeSeriesView(origin=f"{ep.METRICS}/eval", name="metrics vs ground truth"),
-                name="metrics",
-            ),
+            _metrics(),
             column_shares=[2.2, 1.0],
         ),
         row_shares=[2.0, 1.0],
     )
-    return rrb.Blueprint(
-        _stable_ids("review", root),
-        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
-        collapse_panels=True,
-    )
+    return _blueprint("review", root)
 
 
 def laser_blueprint() -> rrb.Blueprint:
@@ -106,20 +115,12 @@ def laser_blueprint() -> rrb.Blueprint:
         _birds_eye("bird's eye (odom frame)", ["$origin/**", f"- {ep.ODOM}/errors"]),
         rrb.Vertical(
             _birds_eye("laser (base frame)", ["$origin/**"], origin=ep.ROBOT),
-            rrb.Tabs(
-                rrb.TimeSeriesView(origin=f"{ep.METRICS}/counts", name="counts"),
-                rrb.TimeSeriesView(origin=f"{ep.METRICS}/eval", name="metrics vs ground truth"),
-                name="metrics",
-            ),
+            _metrics(),
             row_shares=[1.2, 1.0],
         ),
         column_shares=[2.0, 1.0],
     )
-    return rrb.Blueprint(
-        _stable_ids("laser", root),
-        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
-        collapse_panels=True,
-    )
+    return _blueprint("laser", root)
 
 
 def calibration_blueprint() -> rrb.Blueprint:
@@ -135,11 +136,7 @@ def calibration_blueprint() -> rrb.Blueprint:
         ),
         row_shares=[2.0, 1.2, 1.0],
     )
-    return rrb.Blueprint(
-        _stable_ids("calibration", root),
-        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
-        collapse_panels=True,
-    )
+    return _blueprint("calibration", root)
 
 
 def compare_blueprint() -> rrb.Blueprint:
@@ -178,11 +175,7 @@ def compare_blueprint() -> rrb.Blueprint:
         ),
         row_shares=[2.0, 1.0],
     )
-    return rrb.Blueprint(
-        _stable_ids("compare", root),
-        rrb.TimePanel(state="collapsed", timeline=ep.TIMELINE_FRAME),
-        collapse_panels=True,
-    )
+    return _blueprint("compare", root)
 
 
 BLUEPRINTS: dict[str, Callable[[], rrb.Blueprint]] = {

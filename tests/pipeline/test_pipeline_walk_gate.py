@@ -64,7 +64,7 @@ def test_zero_turns_the_gate_off() -> None:
     assert stands == N
 
 
-@pytest.mark.parametrize("bad", [-0.5, float("nan")])
+@pytest.mark.parametrize("bad", [-0.5, float("nan"), float("inf")])
 def test_a_negative_or_nan_walk_is_refused(bad: float) -> None:
     with pytest.raises(ValueError, match="min_walk_m"):
         LabelOptions(min_walk_m=bad)
