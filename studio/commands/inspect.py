@@ -203,6 +203,36 @@ def _report(args: argparse.Namespace) -> None:
             print(f"sync (rig {args.rig}, base_frame '{rig.base_frame}', max_dt {ms:g} ms):")
             for line in report.summary().splitlines():
                 print(f"  {line}")
+            print(f"sensor poses in '{rig.base_frame}' (x y z m, roll pitch yaw °):")
+            for line in _pose_lines(rec, rig):
+                print(f"  {line}")
+
+
+def _pose_lines(rec: Recording, rig: Any) -> list[str]:
+    """Where ``studio label`` puts each sensor: its pose, from the rig or the recording's TF (or looked up
+    scan by scan where the mount moves), and a scanner mounted upside down."""
+    from studio.io import resolve_sensor_poses
+
+    placed = resolve_sensor_poses(rec, rig)
+    sensors: list[tuple[str, Any, Any]] = [
+        ("laser", a, b) for a, b in zip(rig.lasers, placed.lasers, strict=True)
+    ]
+    if rig.camera is not None:
+        sensors.insert(0, ("camera", rig.camera, placed.camera))
+    lines = []
+    for kind, given, pose_of in sensors:
+        pose = pose_of.pose
+        if pose is None:
+            lines.append(f"{kind} {given.topic}: from TF scan by scan (no static transform to the base)")
+            continue
+        x, y, z = np.round(pose.t, 3) + 0.0  # no "-0.000"
+        r, p, w = np.round(np.degrees(pose.rpy()), 1) + 0.0
+        text = f"{kind} {given.topic}: {x:.3f} {y:.3f} {z:.3f}, {r:.1f} {p:.1f} {w:.1f} "
+        text += "(rig)" if given.pose is not None else "(TF)"
+        if kind == "laser" and pose.R[2, 2] < 0:
+            text += "; mounted upside down: its scans are turned upright"
+        lines.append(text)
+    return lines
 
 
 def run(args: argparse.Namespace) -> int:

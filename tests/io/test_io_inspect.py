@@ -38,6 +38,19 @@ def test_inspect_real_bag_with_rig(tmp_path: Path, capsys: pytest.CaptureFixture
     assert "frames: 435 yielded of 435 (scans of /left_scan)" in out
     assert "laser /rear_scan: scan in" in out
     assert "warning: the rig has no odometry" in out
+    assert "laser /left_scan: 0.000 0.000 0.000, 0.0 0.0 0.0 (TF)" in out  # the base frame is its own
+    assert "laser /rear_scan: -0.500 0.000 0.000, 0.0 0.0 179.9 (rig)" in out
+    assert "upside down" not in out
+
+
+def test_inspect_names_a_scanner_mounted_upside_down(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: base\nlasers:\n  - topic: /left_scan\n    pose: {z: 0.3, roll: 3.14159}\n")
+    assert main(["inspect", str(bag("negative_2.bag")), "--rig", str(rig)]) == 0
+    out = capsys.readouterr().out
+    assert "laser /left_scan: 0.000 0.000 0.300, 180.0 0.0 0.0 (rig); mounted upside down" in out
 
 
 def test_inspect_synthetic_shows_tf_tree(
