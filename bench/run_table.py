@@ -6,7 +6,9 @@
     .venv/bin/python bench/run_table.py --reuse thesis laser   # keep finished runs of unchanged methods
 
 Each run is a child process, so its peak resident memory (``peak MB``) is its own.
-Methods: ``studio`` (ours), ``thesis`` (the thesis method, same inputs), ``laser`` (ours, laser only),
+Methods: ``studio`` (ours), ``thesis`` (the thesis method, same inputs), ``laser`` (ours, laser only, on
+the camera's frames), ``laser-rig`` (ours on the rig without its camera, as a robot without one labels:
+a frame per scan of the first laser, 40 Hz; no fused-stage F1, whose ground truth is per camera frame),
 ``camera`` (ours, camera only). Metrics at 0.2 m (the thesis radius). Recordings are simulated once into
 ``bench/out/sim`` and reused (their folder names carry the simulator version, so a simulator change makes
 them again); runs go to ``bench/out/runs``. Prints a markdown table.
@@ -39,6 +41,7 @@ METHODS = {
     "studio": LabelOptions(),
     "thesis": LabelOptions(method="thesis"),
     "laser": LabelOptions(sources="laser"),
+    "laser-rig": LabelOptions(sources="laser"),
     "camera": LabelOptions(sources="camera"),
 }
 
@@ -98,12 +101,23 @@ def image_ap(run: Path, gt_path: Path) -> float:
 def run_one(rec: Path, method: str) -> dict[str, Any]:
     """Label ``rec`` with ``method`` in this process and measure it (the child side of :func:`measure`)."""
     run = OUT / "runs" / rec.name / method
-    info = run_label(
-        rec / "recording.mcap", rec / "rig.yaml", run, options=METHODS[method], write_rrd=False, quiet=True
-    )
+    rig = rec / "rig.yaml"
+    if method == "laser-rig":
+        import yaml
+
+        spec = yaml.safe_load(rig.read_text())
+        spec.pop("camera", None)
+        rig = OUT / "runs" / rec.name / "rig-without-camera.yaml"
+        rig.parent.mkdir(parents=True, exist_ok=True)
+        rig.write_text(yaml.safe_dump(spec, sort_keys=False))
+    info = run_label(rec / "recording.mcap", rig, run, options=METHODS[method], write_rrd=False, quiet=True)
     gt = rec / "ground_truth.jsonl"
     m = evaluate(run / "labels.jsonl", gt).metrics()
-    det = evaluate(run / "detections.yaml", rec / "ground_truth.yaml").metrics()
+    det = (
+        {"f1": math.nan}  # detections.yaml is matched to the ground truth's frames by index
+        if method == "laser-rig"
+        else evaluate(run / "detections.yaml", rec / "ground_truth.yaml").metrics()
+    )
     labels = read_labels(run / "labels.jsonl")
     minutes = (labels.frames[-1].stamp_ns - labels.frames[0].stamp_ns) / 60e9 if len(labels) > 1 else math.nan
     frames = info["counts"]["frames"]
