@@ -212,6 +212,7 @@ def _pose_lines(rec: Recording, rig: Any) -> list[str]:
     """Where ``studio label`` puts each sensor: its pose, from the rig or the recording's TF (or looked up
     scan by scan where the mount moves), and a scanner mounted upside down."""
     from studio.io import resolve_sensor_poses
+    from studio.io.base import upside_down
 
     placed = resolve_sensor_poses(rec, rig)
     sensors: list[tuple[str, Any, Any]] = [
@@ -229,7 +230,7 @@ def _pose_lines(rec: Recording, rig: Any) -> list[str]:
         r, p, w = np.round(np.degrees(pose.rpy()), 1) + 0.0
         text = f"{kind} {given.topic}: {x:.3f} {y:.3f} {z:.3f}, {r:.1f} {p:.1f} {w:.1f} "
         text += "(rig)" if given.pose is not None else "(TF)"
-        if kind == "laser" and pose.R[2, 2] < 0:
+        if kind == "laser" and upside_down(pose):
             text += "; mounted upside down: its scans are turned upright"
         lines.append(text)
     return lines

@@ -22,6 +22,7 @@ __all__ = [
     "RawMessage",
     "ScanInBase",
     "TopicInfo",
+    "upside_down",
 ]
 
 
@@ -196,6 +197,11 @@ class Odometry:
             raise TypeError("Odometry.pose must be a Pose2")
 
 
+def upside_down(sensor_pose: Pose3) -> bool:
+    """Whether a scanner with this pose in the base frame is mounted upside down (its z axis points down)."""
+    return bool(sensor_pose.R[2, 2] < 0.0)
+
+
 @dataclass(frozen=True)
 class ScanInBase:
     """A scan attached to a frame, with where the laser was relative to the base at the frame stamp.
@@ -232,7 +238,7 @@ class ScanInBase:
             and the scan's own.
         """
         pose, pts, valid = self.sensor_pose, self.scan.points(), self.scan.valid()
-        flipped = bool(pose.R[2, 2] < 0.0)
+        flipped = upside_down(pose)
         if flipped:
             pose = pose.compose(Pose3(np.diag([1.0, -1.0, -1.0]), np.zeros(3)))
             pts = pts * np.array([1.0, -1.0])

@@ -425,6 +425,8 @@ def track_all(
     span: dict[int, list[int]] = {}
     sources: dict[int, Counter[str]] = {}
     camera_gate = has_camera and options.sources == "both"
+    walk_gate = options.min_walk_m > 0 and (not has_camera or options.sources == "laser")
+    observed: dict[int, list[tuple[int, float, float]]] = {}  # walk gate: each track's observed positions
     by_camera = ("fused", "image")
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         how = fr.observations.how
@@ -439,6 +441,8 @@ def track_all(
             if p.det_index >= 0:
                 src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
+                if walk_gate:
+                    observed.setdefault(p.track_id, []).append((fr.stamp_ns, float(p.xy[0]), float(p.xy[1])))
                 # a laser person beside someone a box took, in that box: the camera saw someone there too
                 beside = p.det_index < len(how) and how[p.det_index] == "beside-box"
                 camera = src in by_camera or beside
@@ -446,13 +450,6 @@ def track_all(
                 camera = bool(np.min(np.hypot(*(seen - p.xy).T)) <= _CAMERA_SEEN_M)
             if camera:
                 camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
-    walk_gate = options.min_walk_m > 0 and (not has_camera or options.sources == "laser")
-    observed: dict[int, list[tuple[int, float, float]]] = {}
-    if walk_gate:
-        for fr, tf in zip(fused, result.frames, strict=True):
-            for p in tf.points:
-                if p.det_index >= 0:
-                    observed.setdefault(p.track_id, []).append((fr.stamp_ns, float(p.xy[0]), float(p.xy[1])))
     keep = set()
     for tid, stamps in span.items():
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:

@@ -156,14 +156,14 @@ def laser_in_base(
     Returns:
         The detections of all scans merged (their segments index the points), each one's scan-plane height
         ``(N,)`` m, every beam ``(M, 3)`` float32 in the base frame (NaN = no return, in beam order per
-        scan, reversed for a scanner mounted upside down: :meth:`studio.io.ScanInBase.upright`), the
-        scanners' positions ``(S, 2)`` and which scanner each beam came from ``(M,)``.
+        scan, counter-clockwise: :meth:`studio.io.ScanInBase.upright`), the scanners' positions ``(S, 2)``
+        and which scanner each beam came from ``(M,)``.
     """
     parts, zs, pts_all, origins, owner = [], [], [], [], []
     offset = 0
     offsets = []
     for k, sib in enumerate(frame.scans):
-        pose, pts2, valid = sib.upright()  # a scanner mounted upside down: its beams in reverse order
+        pose, pts2, valid = sib.upright()  # turned upright if mounted upside down, beams counter-clockwise
         m = pose.to_pose2().matrix()
         det = _detect_scan(detector, pts2, valid, memory, k, frame.robot_pose.matrix() @ m)
         parts.append(det.transformed(m))
