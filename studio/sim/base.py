@@ -32,7 +32,8 @@ class LaserSpec:
     Attributes:
         topic: ROS topic of its ``sensor_msgs/LaserScan``.
         frame_id: its TF frame.
-        pose: ``T_base_laser`` (z is the scanning height).
+        pose: ``T_base_laser`` (z is the scanning height; level: upright, or upside down with roll π, when it
+            sweeps clockwise seen from above, as many robots mount their scanners).
         rate_hz: scan rate, Hz.
         offset_s: time of the first scan after the recording start, seconds.
         angle_min: first beam angle, rad.
@@ -57,6 +58,14 @@ class LaserSpec:
     def angles(self) -> FloatArray:
         """Beam angles (n_beams,), rad, in the laser frame."""
         return self.angle_min + self.angle_increment * np.arange(self.n_beams, dtype=np.float64)
+
+    def base_angles(self) -> FloatArray:
+        """Beam directions (n_beams,) in the base frame, rad: a scanner mounted upside down (its z axis
+        down) sweeps the other way round."""
+        from studio.io.base import upside_down
+
+        sign = -1.0 if upside_down(self.pose) else 1.0
+        return self.pose.to_pose2().yaw + sign * self.angles()
 
 
 @dataclass(frozen=True)

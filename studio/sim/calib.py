@@ -221,7 +221,7 @@ def _cast(
         res = caster.cast(rig.lasers[li], robot, np.zeros((0, 2, 3)), np.zeros(0), rng)
         seg = _board_segment(par)
         mid = 0.5 * (seg[:2] + seg[2:])
-        ang = rig.lasers[li].angles() + rig.lasers[li].pose.to_pose2().yaw
+        ang = rig.lasers[li].base_angles()
         o = rig.lasers[li].pose.t[:2]
         pts = o + res.true_ranges[:, None] * np.stack([np.cos(ang), np.sin(ang)], 1)
         on = np.isfinite(res.true_ranges) & (np.hypot(*(pts - mid).T) <= BOARD_WIDTH / 2 + 0.01)

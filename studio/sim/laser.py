@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from studio.io.base import upside_down
 from studio.sim.base import LASER_Z, LaserSpec, SimRig, World
 
 __all__ = ["LaserCaster", "ScanResult"]
@@ -154,10 +155,18 @@ class LaserCaster:
         c, s = np.cos(yaw), np.sin(yaw)
         lt = spec.pose.t
         o = np.array([x + c * lt[0] - s * lt[1], y + s * lt[0] + c * lt[1]])
-        a0 = float(spec.angle_min + yaw + spec.pose.to_pose2().yaw)
-        inc = float(spec.angle_increment)
-        ang = a0 + inc * np.arange(spec.n_beams)
         n = spec.n_beams
+        # cast counter-clockwise; a scanner that sweeps clockwise in the base frame (mounted upside down, or
+        # a negative angle_increment) gets its beams back in its own order at the end
+        sign = -1.0 if upside_down(spec.pose) else 1.0
+        backwards = sign * spec.angle_increment < 0
+        if backwards:
+            last = spec.angle_min + (n - 1) * spec.angle_increment
+            a0 = float(sign * last + yaw + spec.pose.to_pose2().yaw)
+        else:
+            a0 = float(sign * spec.angle_min + yaw + spec.pose.to_pose2().yaw)
+        inc = abs(float(spec.angle_increment))
+        ang = a0 + inc * np.arange(n)
         body_w = self.body.copy()
         for k in (0, 2):
             bx, by = self.body[:, k], self.body[:, k + 1]
@@ -205,6 +214,8 @@ class LaserCaster:
         ranges = np.where(hit & (kinds == 3), np.nan, ranges)
         person = np.where(drop, -1, person)
         counts = np.bincount(person[person >= 0], minlength=n_people) if n_people else np.zeros(0, np.int64)
+        if backwards:
+            ranges, true, person = ranges[::-1], true[::-1], person[::-1]
         return ScanResult(
             ranges=ranges.astype(np.float32),
             true_ranges=true,

@@ -286,14 +286,17 @@ def simulate(
 
 
 def _check_rig(rig: SimRig) -> None:
-    """The renderer and the ray caster model a level camera and level lasers at :data:`LASER_Z`."""
+    """The renderer and the ray caster model a level camera and level lasers (upright or upside down) at
+    :data:`LASER_Z`."""
     roll, pitch, _ = rig.camera_pose.rpy()
     if abs(roll) > 1e-9 or abs(pitch) > 1e-9:
         raise SimError("the simulated camera must be level (roll = pitch = 0)")
     for spec in rig.lasers:
-        r, p, _ = spec.pose.rpy()
-        if abs(r) > 1e-9 or abs(p) > 1e-9 or abs(float(spec.pose.t[2]) - LASER_Z) > 1e-9:
-            raise SimError(f"simulated laser {spec.frame_id} must be level at z = {LASER_Z} m")
+        r, p, _ = spec.pose.rpy()  # level: upright (roll 0) or upside down (roll π)
+        if abs(np.sin(r)) > 1e-9 or abs(p) > 1e-9 or abs(float(spec.pose.t[2]) - LASER_Z) > 1e-9:
+            raise SimError(
+                f"simulated laser {spec.frame_id} must be level (upright or upside down) at z = {LASER_Z} m"
+            )
     if rig.width != 2 * rig.height:
         raise SimError(f"panorama must be twice as wide as high, got {rig.width}×{rig.height}")
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +81,26 @@ def test_laser_sees_both_legs_with_a_gait_and_none_through_walls() -> None:
     assert noisy.ranges.dtype == np.float32
     assert np.isnan(noisy.ranges).any()  # dropouts (and the robot's own body) read NaN
     assert np.isinf(noisy.ranges).sum() == np.isinf(res.true_ranges).sum()  # nothing in range reads +inf
+
+
+def test_a_scanner_upside_down_or_sweeping_clockwise_sees_the_same_world_in_its_own_beam_order() -> None:
+    rig = SimRig()
+    up = rig.lasers[0]
+    last = up.angle_min + (up.n_beams - 1) * up.angle_increment
+    r, p, y = up.pose.rpy()
+    t = up.pose.t
+    flipped = replace(up, pose=Pose3.from_xyz_rpy(*t, roll=r + np.pi, pitch=p, yaw=y), angle_min=-last)
+    clockwise = replace(up, angle_min=last, angle_increment=-up.angle_increment)
+    caster = LaserCaster(build_world(), rig)
+    legs = leg_circles(np.array([[2.0, 0.3, 0.0, 1.2, np.pi / 2]]), np.array([1.75]))
+    robot = np.array([0.5, 0.3, 0.4])
+    want = caster.cast(up, robot, legs, np.zeros(1), None)
+    for spec in (flipped, clockwise):
+        np.testing.assert_allclose(spec.base_angles(), up.base_angles()[::-1], atol=1e-9)
+        got = caster.cast(spec, robot, legs, np.zeros(1), None)
+        np.testing.assert_array_equal(got.true_ranges, want.true_ranges[::-1])
+        np.testing.assert_array_equal(got.person, want.person[::-1])
+        assert got.person_hits[0] == want.person_hits[0] >= 10
 
 
 def test_a_rotated_camera_puts_people_where_its_pose_projects_them(tmp_path: Path) -> None:
