@@ -32,8 +32,8 @@ class LaserSpec:
     Attributes:
         topic: ROS topic of its ``sensor_msgs/LaserScan``.
         frame_id: its TF frame.
-        pose: ``T_base_laser`` (z is the scanning height; level: upright, or upside down with roll π, when it
-            sweeps clockwise seen from above, as many robots mount their scanners).
+        pose: ``T_base_laser`` (z is the scanning height). Level: upright, or upside down with roll π (as
+            many robots mount their scanners; it then sweeps clockwise seen from above).
         rate_hz: scan rate, Hz.
         offset_s: time of the first scan after the recording start, seconds.
         angle_min: first beam angle, rad.
