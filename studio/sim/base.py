@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from studio.geometry.se import Pose3
+from studio.io.base import upside_down
 
 __all__ = ["LASER_Z", "WALL_HEIGHT", "LaserSpec", "SimResult", "SimRig", "World"]
 
@@ -62,8 +63,6 @@ class LaserSpec:
     def base_angles(self) -> FloatArray:
         """Beam directions (n_beams,) in the base frame, rad: a scanner mounted upside down (its z axis
         down) sweeps the other way round."""
-        from studio.io.base import upside_down
-
         sign = -1.0 if upside_down(self.pose) else 1.0
         return self.pose.to_pose2().yaw + sign * self.angles()
 
