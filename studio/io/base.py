@@ -78,6 +78,8 @@ class LaserScan:
         range_min: smallest valid range, metres.
         range_max: largest valid range, metres.
         intensities: float32 (N,) or None when the scanner gives none.
+        time_increment: time between beams, seconds (beam ``i`` at ``stamp_ns + i · time_increment``); 0 when
+            the driver does not say (the scan is then taken as instantaneous).
     """
 
     stamp_ns: int
@@ -88,6 +90,7 @@ class LaserScan:
     range_min: float
     range_max: float
     intensities: NDArray[np.float32] | None = None
+    time_increment: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "stamp_ns", _check_stamp("LaserScan", self.stamp_ns))
@@ -101,7 +104,7 @@ class LaserScan:
                 raise ValueError(f"LaserScan intensities {inten.shape} do not match ranges {ranges.shape}")
             else:
                 object.__setattr__(self, "intensities", inten)
-        for name in ("angle_min", "angle_increment", "range_min", "range_max"):
+        for name in ("angle_min", "angle_increment", "range_min", "range_max", "time_increment"):
             v = float(getattr(self, name))
             if not np.isfinite(v):
                 raise ValueError(f"LaserScan.{name} must be finite, got {v}")
@@ -211,15 +214,36 @@ class ScanInBase:
         scan: the decoded scan (its own stamp may differ from the frame's by up to ``max_dt_s``).
         sensor_pose: T_base_laser expressed in the base frame *at the frame stamp*, i.e. motion-compensated:
             ``T_odom_base(t_frame)⁻¹ ∘ T_odom_base(t_scan) ∘ T_base_laser``.
+        sensor_pose_end: the same at the time of the scan's last beam, when the scan took time
+            (``LaserScan.time_increment``) and odometry tells how the robot moved meanwhile; else None.
     """
 
     topic: str
     scan: LaserScan
     sensor_pose: Pose3
+    sensor_pose_end: Pose3 | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.scan, LaserScan) or not isinstance(self.sensor_pose, Pose3):
             raise TypeError("ScanInBase needs a LaserScan and a Pose3")
+
+    def deskewed(
+        self, pts: NDArray[np.float64], beams: NDArray[np.int64] | None = None
+    ) -> NDArray[np.float64]:
+        """Points ``(K, 2)`` of beams ``beams`` (all the scan's when None) in the scanner's frame, as the
+        scanner saw them from where it was at the first beam: a scanner that sweeps while the robot turns
+        or drives measures each beam from elsewhere (a 10 Hz scanner on a robot turning at 0.5 rad/s: 0.05 rad
+        over the sweep, 25 cm at 5 m). The motion between ``sensor_pose`` and ``sensor_pose_end`` is spread
+        over the beams in proportion to their time. Without ``sensor_pose_end`` the points are unchanged."""
+        n = len(self.scan)
+        if self.sensor_pose_end is None or n < 2:
+            return pts
+        d = self.sensor_pose.inverse().compose(self.sensor_pose_end)  # the sweep's motion, scanner frame
+        turn = float(np.arctan2(d.R[1, 0], d.R[0, 0]))
+        f = (np.arange(n) if beams is None else np.asarray(beams)) / (n - 1)
+        c, s = np.cos(f * turn), np.sin(f * turn)
+        x, y = pts[:, 0], pts[:, 1]
+        return np.stack([c * x - s * y + f * d.t[0], s * x + c * y + f * d.t[1]], axis=1)
 
     def upright(self) -> tuple[Pose3, NDArray[np.float64], NDArray[np.bool_]]:
         """The scan as a scanner at the same place, mounted the right way up and turning counter-clockwise,
@@ -237,7 +261,7 @@ class ScanInBase:
             and their validity mask ``(N,)``; for an upright scanner with a positive step, ``sensor_pose``
             and the scan's own.
         """
-        pose, pts, valid = self.sensor_pose, self.scan.points(), self.scan.valid()
+        pose, pts, valid = self.sensor_pose, self.deskewed(self.scan.points()), self.scan.valid()
         flipped = upside_down(pose)
         if flipped:
             pose = pose.compose(Pose3(np.diag([1.0, -1.0, -1.0]), np.zeros(3)))
@@ -248,7 +272,7 @@ class ScanInBase:
 
     def points_base(self) -> NDArray[np.float64]:
         """Valid beam end points (M, 3), metres, in the base frame at the frame stamp."""
-        pts = self.scan.points()[self.scan.valid()]
+        pts = self.deskewed(self.scan.points())[self.scan.valid()]
         p3 = np.zeros((pts.shape[0], 3), dtype=np.float64)
         p3[:, :2] = pts
         return self.sensor_pose.apply(p3)

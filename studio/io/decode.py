@@ -113,7 +113,12 @@ def decode_scan(msg: Any, stamp_ns: int | None = None) -> LaserScan:
             rmax = float(np.finfo(np.float32).max)
         if ranges.size and da == 0.0:
             raise ValueError("angle_increment is 0")
-        return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten)
+        # the time between beams (ROS: beam i at the header stamp + i · time_increment); a sweep said to last
+        # over a second is a driver's placeholder, not a time
+        ti = float(getattr(msg, "time_increment", 0.0) or 0.0)
+        if not math.isfinite(ti) or abs(ti) * max(ranges.size - 1, 0) > 1.0:
+            ti = 0.0
+        return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten, ti)
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable laser scan: {exc}") from None
 

@@ -233,6 +233,11 @@ class _Motion:
             self.odom_frame = cfg.tf
             self.tf = tf
 
+    @property
+    def known(self) -> bool:
+        """Whether odometry or TF gives the robot's motion (else it is taken as static)."""
+        return self.track is not None or self.odom_frame is not None
+
     def at(self, t: int) -> Pose3 | None:
         if self.track is not None:
             p = self.track.at(t)
@@ -443,11 +448,18 @@ def iter_frames(
                 st.missing += 1
                 continue
             T_s = motion.at(scan.stamp_ns) if scan.stamp_ns != p.stamp else T_f
+            moved = T_s is not None  # the odometry covers the scan's time
             if T_s is None:
                 rep.uncompensated_scans += 1
                 T_s = T_f
             pose = T_f_inv.compose(T_s).compose(T_bl)
-            scans.append(ScanInBase(cfg.topic, scan, pose))
+            pose_end = None
+            if scan.time_increment != 0.0 and len(scan) > 1 and moved and motion.known:
+                # the robot's motion over the sweep (each beam from where the scanner was at its time)
+                T_e = motion.at(scan.stamp_ns + round((len(scan) - 1) * scan.time_increment * 1e9))
+                if T_e is not None:
+                    pose_end = T_f_inv.compose(T_e).compose(T_bl)
+            scans.append(ScanInBase(cfg.topic, scan, pose, pose_end))
             st.attached += 1
             st.sum_dt_ns += dt
             st.max_dt_ns = max(st.max_dt_ns, dt)

@@ -203,7 +203,8 @@ def open_beams_in_base(frame: Any) -> tuple[NDArray[np.float32], NDArray[np.int1
             continue
         a = scan.angles()[is_open]
         p3 = np.zeros((len(a), 3))
-        p3[:, 0], p3[:, 1] = scan.range_max * np.cos(a), scan.range_max * np.sin(a)
+        far = scan.range_max * np.stack([np.cos(a), np.sin(a)], axis=1)
+        p3[:, :2] = sib.deskewed(far, np.flatnonzero(is_open))
         ends.append(sib.sensor_pose.apply(p3)[:, :2].astype(np.float32))
         owner.append(np.full(len(a), k, np.int16))
     return np.concatenate(ends), np.concatenate(owner)
