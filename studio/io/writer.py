@@ -177,7 +177,7 @@ class RecordingWriter:
             angle_max=float(scan.angle_min + scan.angle_increment * max(n - 1, 0)),
             angle_increment=float(scan.angle_increment),
             time_increment=float(scan.time_increment),
-            scan_time=float(abs(scan.time_increment) * max(n - 1, 0)),
+            scan_time=0.0,  # the time between scans: not known here
             range_min=float(scan.range_min),
             range_max=float(scan.range_max),
             ranges=np.ascontiguousarray(scan.ranges, dtype=np.float32),
