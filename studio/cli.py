@@ -23,6 +23,9 @@ from studio.errors import StudioError
 __all__ = ["build_parser", "main"]
 
 
+_RECORDING = "ROS1 .bag or a folder of them (one recording), ROS2 bag directory / .db3 / .mcap, or plain MCAP"
+
+
 def _image_size(text: str) -> tuple[int, int]:
     try:
         w, h = text.lower().split("x")
@@ -92,11 +95,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output directory")
 
     p = sub.add_parser("inspect", help="topics, counts, rates, TF frames and sync statistics of a recording")
-    p.add_argument("recording", help="ROS1 .bag, ROS2 bag directory / .db3 / .mcap, or plain MCAP")
+    p.add_argument("recording", help=_RECORDING)
     p.add_argument("--rig", default=None, help="rig.yaml: also report frame synchronisation for this rig")
 
     p = sub.add_parser("label", help="auto-label people's positions and identities in a recording")
-    p.add_argument("recording")
+    p.add_argument("recording", help=_RECORDING)
     p.add_argument("--rig", required=True, help="rig.yaml describing the sensors")
     p.add_argument("--out", required=True, help="run directory to write")
     p.add_argument("--method", choices=["studio", "thesis"], default="studio")

@@ -34,12 +34,8 @@ def _utc(ns: int) -> str:
     return datetime.fromtimestamp(ns / 1e9, tz=UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC"
 
 
-def _size(path: Path) -> str:
-    n = (
-        sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
-        if path.is_dir()
-        else path.stat().st_size
-    )
+def _size(files: tuple[Path, ...]) -> str:
+    n = sum(_size_bytes(f) for f in files)
     for unit in ("B", "KB", "MB", "GB"):
         if n < 1024 or unit == "GB":
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
@@ -155,14 +151,17 @@ def describe_recording(rec: Recording, *, exact_rates: bool | None = None) -> li
             span); default: when the recording is under 2 GiB, else the rates use the whole recording's span.
     """
     kinds = {"ros1": "ROS1 bag", "ros2": "ROS2 bag", "mcap": "plain MCAP"}
-    lines = [f"recording: {rec.path} ({kinds[rec.kind]}, {_size(rec.path)})"]
+    kind = kinds[rec.kind] if len(rec.files) == 1 else f"{len(rec.files)} ROS1 bags merged"
+    lines = [f"recording: {rec.path} ({kind}, {_size(rec.files)})"]
+    if len(rec.files) > 1:
+        lines += [f"  {f.name}" for f in rec.files]
     span = rec.duration_ns / 1e9
     if rec.topics and any(t.count for t in rec.topics.values()):
         lines.append(f"time span: {_utc(rec.start_ns)} → {_utc(rec.end_ns)} ({span:.3f} s, log time)")
     else:
         lines.append("time span: empty recording")
     if exact_rates is None:
-        exact_rates = _size_bytes(rec.path) < _SCAN_ALL_BELOW
+        exact_rates = sum(_size_bytes(f) for f in rec.files) < _SCAN_ALL_BELOW
     ends = _first_last(rec) if exact_rates else {}
     how = "rate over the topic's own span" if exact_rates else "≈ rate over the recording's span"
     lines.append(f"topics ({len(rec.topics)}; type, messages, {how}, log time):")

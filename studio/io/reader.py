@@ -1,8 +1,11 @@
-"""Open a recording and read its raw records: ROS1 ``.bag``, ROS2 (folder, ``.db3``, ``.mcap``), plain MCAP.
+"""Open a recording and read its raw records: ROS1 ``.bag`` (one, or a folder of them), ROS2 (folder,
+``.db3``, ``.mcap``), plain MCAP.
 
 ROS bags are read with ``rosbags``' AnyReader. ROS1 bags carry their own message definitions (custom types
 included); ROS2 bags that carry none are decoded with the ROS2 Humble type store (types missing from a
-bag's own definitions are taken from it too). An ``.mcap`` file whose profile is not ``ros2`` is read
+bag's own definitions are taken from it too). A folder of ROS1 bags (``rosbag record --split``, or one bag
+per sensor recorded side by side) is one recording: its bags' messages are merged in log-time order and a
+topic in several bags is one topic. An ``.mcap`` file whose profile is not ``ros2`` is read
 with the ``mcap`` library (see :mod:`studio.io.mcap_backend`).
 
 Reading yields :class:`~studio.io.base.RawMessage` records in log-time order; decoding is a separate
@@ -12,6 +15,7 @@ step (:meth:`Recording.decode`, then :mod:`studio.io.decode`).
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
@@ -48,14 +52,18 @@ def _reason(exc: BaseException) -> str:
 class _RosbagsBackend:
     """ROS1 / ROS2 bags through rosbags' AnyReader."""
 
-    def __init__(self, path: Path, kind: Kind) -> None:
+    def __init__(self, paths: list[Path], kind: Kind) -> None:
         from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
 
         store = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
-        self.path = path
-        self.reader = AnyReader([path], default_typestore=store)
-        self.reader.open()
+        self.reader = AnyReader(paths, default_typestore=store)
+        try:
+            self.reader.open()
+        except Exception:
+            if len(paths) > 1:
+                _name_the_bad_bag(paths, store)
+            raise
         try:
             self._complete_types(store)
             self.topics: dict[str, TopicInfo] = {}
@@ -102,19 +110,60 @@ class _RosbagsBackend:
             self.reader.close()
 
 
+def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
+    """Raises :class:`RecordingError` naming the first of ``paths`` (ROS1 bags) that cannot be opened alone;
+    returns when each can (the error is then in how they go together)."""
+    from rosbags.highlevel import AnyReader
+
+    for path in paths:
+        try:
+            with AnyReader([path], default_typestore=store):
+                pass
+        except Exception as exc:
+            raise RecordingError(
+                f"{path}: cannot open this bag of the recording (truncated or corrupt?): {_reason(exc)}"
+            ) from exc
+
+
+def _unfinished(bag: Path) -> RecordingError:
+    return RecordingError(
+        f"{bag}: an unfinished ROS1 bag (its recording was interrupted): run `rosbag reindex` on it and "
+        "rename it to .bag, or leave it out of the recording"
+    )
+
+
+def _ros1_bags(folder: Path) -> list[Path]:
+    """The ROS1 bags of a folder recording, in name order (``run_2.bag`` before ``run_10.bag``).
+
+    Raises:
+        RecordingError: no bags, or a bag ``rosbag record`` did not finish (``.bag.active``).
+    """
+    active = sorted(folder.glob("*.bag.active"))
+    if active:
+        raise _unfinished(active[0])
+    bags = [f for f in folder.glob("*.bag") if f.is_file()]
+    if not bags:
+        raise RecordingError(
+            f"{folder}: a folder recording must be a ROS2 bag (with metadata.yaml) or hold ROS1 .bag files"
+        )
+    return sorted(bags, key=lambda f: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", f.name)])
+
+
 class Recording:
     """An open recording. Use as a context manager (or call :meth:`close`).
 
     Attributes:
         path: the file or directory.
+        files: the ROS1 bags of a folder of them, else ``(path,)``.
         kind: ``"ros1"``, ``"ros2"`` or ``"mcap"`` (plain, non-ROS MCAP).
         topics: topic name → :class:`TopicInfo` (type and message count).
         start_ns: log time of the first message, ns (0 when empty).
         end_ns: log time of the last message, ns (0 when empty).
     """
 
-    def __init__(self, path: Path, kind: Kind, backend: _Backend) -> None:
+    def __init__(self, path: Path, kind: Kind, backend: _Backend, files: tuple[Path, ...] = ()) -> None:
         self.path = path
+        self.files: tuple[Path, ...] = files or (path,)
         self.kind: Kind = kind
         self._backend: _Backend | None = backend
         self.topics: dict[str, TopicInfo] = dict(backend.topics)
@@ -231,8 +280,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
     """Open a recording for reading.
 
     Args:
-        path: a ROS1 ``.bag``; a ROS2 bag directory (with ``metadata.yaml``), ``.db3`` or ``.mcap`` file;
-            or a plain MCAP file (any other profile).
+        path: a ROS1 ``.bag``, or a folder of them (read as one recording); a ROS2 bag directory (with
+            ``metadata.yaml``), ``.db3`` or ``.mcap`` file; or a plain MCAP file (any other profile).
 
     Raises:
         RecordingError: missing path, unknown format, or a corrupt/truncated/unreadable file (one line).
@@ -241,13 +290,18 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
     if not p.exists():
         raise RecordingError(f"recording not found: {p}")
     kind: Kind
+    files = [p]
     try:
         if p.is_dir():
-            if not (p / "metadata.yaml").exists():
-                raise RecordingError(f"{p}: a directory recording must be a ROS2 bag with metadata.yaml")
-            kind = "ros2"
+            if (p / "metadata.yaml").exists():
+                kind = "ros2"
+            else:
+                files = _ros1_bags(p)
+                kind = "ros1"
         elif p.suffix == ".bag":
             kind = "ros1"
+        elif p.name.endswith(".bag.active"):
+            raise _unfinished(p)
         elif p.suffix == ".db3":
             kind = "ros2"
         elif p.suffix == ".mcap":
@@ -263,11 +317,11 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
 
             backend = McapBackend(p)
         else:
-            backend = _RosbagsBackend(p, kind)
+            backend = _RosbagsBackend(files, kind)
     except RecordingError:
         raise
     except Exception as exc:
         raise RecordingError(
             f"{p}: cannot open the recording (truncated or corrupt?): {_reason(exc)}"
         ) from exc
-    return Recording(p, kind, backend)
+    return Recording(p, kind, backend, tuple(files))

@@ -82,3 +82,38 @@ def write_synthetic(path: Path, *, tf_lasers: bool = True, latency_ns: int = 0) 
                     static=False,
                 )
     return path
+
+
+def split_bag(
+    src: Path, folder: Path, part_of: str = "time", parts: int = 3, seconds: float | None = None
+) -> list[Path]:
+    """Write ``src``'s messages (those of its first ``seconds``, or all) into ``parts`` ROS1 bags in
+    ``folder``, raw bytes unchanged: by ``time`` (consecutive stretches, as ``rosbag record --split``), or by
+    ``topic and time`` (each bag holds some topics over some stretches, so every bag ends at a different
+    time)."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    folder.mkdir(parents=True, exist_ok=True)
+    names = [folder / f"rec_{k}.bag" for k in range(parts)]
+    writers = [Writer(p) for p in names]
+    with Reader(src) as reader:
+        topics = sorted({c.topic for c in reader.connections})
+        end = reader.end_time if seconds is None else reader.start_time + int(seconds * 1e9)
+        span = max(end - reader.start_time, 1)
+        for w in writers:
+            w.open()
+        out = [
+            {
+                c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+                for c in reader.connections
+            }
+            for w in writers
+        ]
+        for c, t, raw in reader.messages(stop=end):
+            k = min(parts - 1, (t - reader.start_time) * parts // span)
+            if part_of == "topic and time":
+                k = (k + topics.index(c.topic)) % parts
+            writers[k].write(out[k][c.id], t, raw)
+        for w in writers:
+            w.close()
+    return names

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -228,9 +227,3 @@ def test_every_real_bag_opens() -> None:
         with open_recording(p) as rec:
             assert rec.topics
             assert all(t.count > 0 for t in rec.topics.values())
-
-
-def test_directory_without_metadata(tmp_path: Path) -> None:
-    shutil.copy(bag("positive/positive_2.bag"), tmp_path / "a.bag")
-    with pytest.raises(RecordingError, match=r"metadata\.yaml"):
-        open_recording(tmp_path)

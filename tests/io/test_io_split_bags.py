@@ -1,0 +1,87 @@
+"""A folder of ROS1 bags is one recording: split recordings (``rosbag record --split``) and one bag per
+sensor, merged in log-time order; a bad bag among them is named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from io_testdata import bag, split_bag
+
+from studio.io import RecordingError, open_recording
+
+
+def _records(path: Path) -> tuple[dict[str, tuple[str, int]], list[tuple[int, str, bytes]]]:
+    with open_recording(path) as rec:
+        topics = {t: (i.msgtype, i.count) for t, i in rec.topics.items()}
+        return topics, [(r.log_ns, r.topic, r.rawdata) for r in rec.messages()]
+
+
+@pytest.mark.parametrize("part_of", ["time", "topic and time"])
+def test_a_folder_of_bags_reads_as_the_bag_they_were_split_from(tmp_path: Path, part_of: str) -> None:
+    src = bag("legs_labelled/positive_1_extracted.bag")  # three topics
+    split_bag(src, tmp_path / "rec", part_of)
+    topics, records = _records(src)
+    with open_recording(tmp_path / "rec") as rec:
+        assert rec.kind == "ros1"
+        assert [f.name for f in rec.files] == ["rec_0.bag", "rec_1.bag", "rec_2.bag"]
+        with open_recording(src) as whole:
+            assert (rec.start_ns, rec.end_ns) == (whole.start_ns, whole.end_ns)
+    got_topics, got = _records(tmp_path / "rec")
+    assert got_topics == topics
+    assert [t for t, *_ in got] == sorted(t for t, *_ in got)  # merged in log-time order
+    assert sorted(got) == sorted(records)
+
+
+def test_the_bags_of_a_folder_go_in_name_order_with_numbers_as_numbers(tmp_path: Path) -> None:
+    parts = split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec", parts=3)
+    for p, name in zip(parts, ["run_2.bag", "run_10.bag", "run_1.bag"], strict=True):
+        p.rename(p.parent / name)
+    (tmp_path / "rec" / "notes.txt").write_text("not a bag")
+    with open_recording(tmp_path / "rec") as rec:
+        assert [f.name for f in rec.files] == ["run_1.bag", "run_2.bag", "run_10.bag"]
+        assert rec.topics["/scan"].count == 1265
+
+
+def test_a_truncated_bag_in_a_folder_is_named(tmp_path: Path) -> None:
+    parts = split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec")
+    data = parts[1].read_bytes()
+    parts[1].write_bytes(data[: len(data) // 2])
+    with pytest.raises(RecordingError) as info:
+        open_recording(tmp_path / "rec")
+    msg = str(info.value)
+    assert msg.startswith(f"{parts[1]}: cannot open this bag of the recording")
+    assert "\n" not in msg
+
+
+def test_an_unfinished_bag_or_a_folder_without_bags_is_one_clear_error(tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("no bags here")
+    with pytest.raises(RecordingError, match=r"must be a ROS2 bag .* or hold ROS1 \.bag files"):
+        open_recording(empty)
+    rec = tmp_path / "rec"
+    parts = split_bag(bag("demo_stationary_simple_environment.bag"), rec, parts=2)
+    parts[1].rename(rec / "rec_1.bag.active")  # rosbag record was stopped before it closed this one
+    for path in (rec, rec / "rec_1.bag.active"):
+        with pytest.raises(RecordingError, match=r"rec_1\.bag\.active: an unfinished ROS1 bag .*reindex"):
+            open_recording(path)
+
+
+def test_a_split_real_recording_labels_as_the_whole(tmp_path: Path) -> None:
+    """The first 40 s of demo_stationary as one bag, and as three split by time: the same labels."""
+    from studio.io import parse_rig
+    from studio.pipeline import LabelOptions
+    from studio.pipeline.label import label_recording
+
+    src = bag("demo_stationary_simple_environment.bag")
+    (whole,) = split_bag(src, tmp_path / "whole", parts=1, seconds=40.0)
+    split_bag(src, tmp_path / "split", parts=3, seconds=40.0)
+    rig = parse_rig({"base_frame": "laser", "lasers": [{"topic": "/scan"}]})
+    labels = []
+    for path in (whole, tmp_path / "split"):
+        run = label_recording(path, rig, options=LabelOptions(sources="laser"))
+        labels.append([(f.stamp_ns, sorted((p.id, p.x, p.y) for p in f.people)) for f in run.labels])
+    assert len(labels[0]) > 350  # 10 Hz
+    assert sum(len(people) for _, people in labels[0]) > 100
+    assert labels[1] == labels[0]
