@@ -42,6 +42,9 @@ class LaserSpec:
         n_beams: number of beams.
         range_min, range_max: valid range interval, metres.
         noise_sigma: Gaussian range noise, metres.
+        sweep_s: time from the first beam to the last, seconds: a real scanner's beams leave one after
+            another as its mirror turns (a 10 Hz scanner over 270°: 0.075 s), written as the scan's
+            ``time_increment``; 0 casts every beam at the stamp.
     """
 
     topic: str
@@ -55,6 +58,7 @@ class LaserSpec:
     range_min: float = 0.05
     range_max: float = 10.0
     noise_sigma: float = 0.012
+    sweep_s: float = 0.0
 
     def angles(self) -> FloatArray:
         """Beam angles (n_beams,), rad, in the laser frame."""

@@ -218,8 +218,14 @@ def simulate(
                         _write_odom(wr, rig, motion.odom, idx, stamp)
                     elif kind == "scan":
                         spec = rig.lasers[idx // 1_000_000]
-                        legs = leg_circles(motion.people_at(t), heights)
-                        res = caster.cast(spec, motion.robot_at(t), legs, dark, r_laser)
+                        res = caster.cast_sweep(
+                            spec,
+                            t,
+                            motion.robot_at,
+                            lambda when: leg_circles(motion.people_at(when), heights),
+                            dark,
+                            r_laser,
+                        )
                         wr.write_scan(
                             spec.topic,
                             LaserScan(
@@ -230,6 +236,7 @@ def simulate(
                                 ranges=res.ranges,
                                 range_min=spec.range_min,
                                 range_max=spec.range_max,
+                                time_increment=spec.sweep_s / max(spec.n_beams - 1, 1),
                             ),
                         )
                     else:
@@ -292,6 +299,10 @@ def _check_rig(rig: SimRig) -> None:
     if abs(roll) > 1e-9 or abs(pitch) > 1e-9:
         raise SimError("the simulated camera must be level (roll = pitch = 0)")
     for spec in rig.lasers:
+        if not 0.0 <= spec.sweep_s < 1.0 / spec.rate_hz:
+            raise SimError(
+                f"simulated laser {spec.frame_id}: sweep_s must be in [0, 1 / rate_hz), got {spec.sweep_s}"
+            )
         r, p, _ = spec.pose.rpy()  # level: upright (roll 0) or upside down (roll π)
         if abs(np.sin(r)) > 1e-9 or abs(p) > 1e-9 or abs(float(spec.pose.t[2]) - LASER_Z) > 1e-9:
             raise SimError(
