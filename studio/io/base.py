@@ -262,13 +262,26 @@ class ScanInBase:
             and the scan's own.
         """
         pose, pts, valid = self.sensor_pose, self.deskewed(self.scan.points()), self.scan.valid()
-        flipped = upside_down(pose)
-        if flipped:
+        if upside_down(pose):
             pose = pose.compose(Pose3(np.diag([1.0, -1.0, -1.0]), np.zeros(3)))
             pts = pts * np.array([1.0, -1.0])
-        if (self.scan.angle_increment < 0.0) != flipped:
+        if self._upright_reversed():
             pts, valid = pts[::-1], valid[::-1]
         return pose, pts, valid
+
+    def _upright_reversed(self) -> bool:
+        """Whether :meth:`upright` reverses the beams: the scanner sweeps clockwise seen from above."""
+        return (self.scan.angle_increment < 0.0) != upside_down(self.sensor_pose)
+
+    def beam_clock(self, frame_stamp_ns: int) -> tuple[float, float]:
+        """When the beams were measured, seconds after ``frame_stamp_ns``: beam ``j`` in :meth:`upright`'s
+        order at ``a + b · j`` for the ``(a, b)`` returned (ROS: beam i of the message at the stamp +
+        i · ``time_increment``; all at the stamp when that is 0)."""
+        t0 = (self.scan.stamp_ns - frame_stamp_ns) * 1e-9
+        ti = float(self.scan.time_increment)
+        if self._upright_reversed():
+            return t0 + ti * max(len(self.scan) - 1, 0), -ti
+        return t0, ti
 
     def points_base(self) -> NDArray[np.float64]:
         """Valid beam end points (M, 3), metres, in the base frame at the frame stamp."""

@@ -134,6 +134,8 @@ class FrameResult:
         colours_hidden: ``(N,)`` observations whose box may show someone standing in front of them
             (:func:`~studio.fuse.colours_hidden`): their clothing colours are not used (observations
             appended later have none), or None.
+        obs_dt: ``(N,)`` when each observation was measured, seconds after the frame stamp: that of the
+            beams on the person for a laser position (0 for an image-only one), or None (all at the stamp).
     """
 
     index: int
@@ -144,6 +146,7 @@ class FrameResult:
     track_pose: Pose2 | None = None
     legs: NDArray[np.float64] | None = None
     colours_hidden: NDArray[np.bool_] | None = None
+    obs_dt: NDArray[np.float64] | None = None
 
     @property
     def world_pose(self) -> Pose2:

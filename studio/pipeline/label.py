@@ -32,6 +32,7 @@ from studio.pipeline.perceive import (
     detect_again,
     odom_scans,
     perceive,
+    point_times,
     rig_camera,
 )
 from studio.track.appearance import APPEARANCE_DIM
@@ -197,8 +198,31 @@ def fuse_all(
             f.track_pose,
             _pair_legs(obs, laser),
             None if camera is None else colours_hidden(obs, camera),
+            _measured_at(obs, f),
         )
     return [r for r in out if r is not None]
+
+
+_PERSON_BEAMS_M = 0.35  # a person's beams lie within this of their position (legs apart, a wide coat)
+
+
+def _measured_at(obs: PersonObservations, f: PerceptionFrame) -> FloatArray | None:
+    """When each observation was measured, seconds after the frame stamp: the mean time of the beams
+    within :data:`_PERSON_BEAMS_M` of a laser position (their scan, and where in its sweep), 0 for an
+    image-only one or where no beam lies near; None when the frame's beams carry no times."""
+    times = point_times(f)
+    if times is None or not len(obs):
+        return None
+    out = np.zeros(len(obs))
+    hit = np.isfinite(f.points[:, 0])
+    pts, dt = f.points[hit, :2].astype(np.float64), times[hit]
+    if not len(pts):
+        return out
+    for k in np.flatnonzero(np.asarray(obs.source) != "image"):
+        near = np.hypot(pts[:, 0] - obs.xy[k, 0], pts[:, 1] - obs.xy[k, 1]) <= _PERSON_BEAMS_M
+        if near.any():
+            out[k] = float(dt[near].mean())
+    return out
 
 
 def _pair_legs(obs: PersonObservations, laser: LaserDetections | None) -> FloatArray | None:
@@ -276,7 +300,8 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
                 np.full(n, -1),
                 np.full(n, -1),
             )
-            fr = replace(fr, observations=PersonObservations.concat([fr.observations, add]))
+            dt = None if fr.obs_dt is None else np.r_[fr.obs_dt, np.zeros(n)]
+            fr = replace(fr, observations=PersonObservations.concat([fr.observations, add]), obs_dt=dt)
         out.append(fr)
     return out
 
@@ -309,8 +334,11 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma:
                 app[k] = appearance[bi]
     source = obs.source + tuple(obs.source[k] for k in pairs for _ in range(2))
     score = np.r_[obs.score, np.repeat(obs.score[pairs], 2)]
+    dt = None
+    if fr.obs_dt is not None and len(fr.obs_dt) == n:
+        dt = np.r_[fr.obs_dt, np.repeat(fr.obs_dt[pairs], 2)]
     return Observations(
-        fr.stamp_ns, xy, cov, source, score, app, np.arange(len(xy)), alt if len(pairs) else None
+        fr.stamp_ns, xy, cov, source, score, app, np.arange(len(xy)), alt if len(pairs) else None, dt
     )
 
 

@@ -65,6 +65,9 @@ class Observations:
             but one leg of the laser leg pair in row ``j`` (whose ``alt_of`` is -1): a tracker never gives it
             out alone, only both legs of ``j`` to two tracks instead of ``j`` to one (two people close
             enough for the laser to pair a leg of each). None: no such rows.
+        dt_s: (N,) float64 or None: when each observation was measured, seconds after ``stamp_ns`` (a scan
+            taken before or after the frame, a beam late in a scanner's sweep); the offline smoother takes
+            a person's motion over it into account. None: all at ``stamp_ns``.
     """
 
     stamp_ns: int
@@ -75,6 +78,7 @@ class Observations:
     appearance: NDArray[np.float32] | None
     det_index: NDArray[np.int64]
     alt_of: NDArray[np.int64] | None = None
+    dt_s: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.stamp_ns, bool) or not isinstance(self.stamp_ns, int | np.integer):
@@ -118,6 +122,12 @@ class Observations:
                 raise ValueError("alt_of must be -1 or the row of an observation that is not an alternative")
             alt.flags.writeable = False
             object.__setattr__(self, "alt_of", alt)
+        if self.dt_s is not None:
+            dt = np.asarray(self.dt_s, dtype=np.float64)
+            if dt.shape != (n,) or not np.all(np.isfinite(dt)):
+                raise ValueError(f"dt_s must be ({n},) finite seconds")
+            dt.flags.writeable = False
+            object.__setattr__(self, "dt_s", dt)
         if app is not None:
             app.flags.writeable = False
         object.__setattr__(self, "appearance", app)

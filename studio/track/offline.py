@@ -190,13 +190,18 @@ def _run(
     stamps = np.array([obs[i].stamp_ns for i in range(first, last + 1)], dtype=np.int64)
     z = np.full((K, 2), np.nan)
     R = np.tile(np.eye(2), (K, 1, 1))
+    dt = np.zeros(K)
     for i, r in hits:
         z[i - first] = obs[i].xy[r]
         R[i - first] = obs[i].cov[r]
+        if obs[i].dt_s is not None:
+            dt[i - first] = obs[i].dt_s[r]  # type: ignore[index]
         if (i, r) in shared:
             R[i - first] = R[i - first] + cfg.shared_sigma**2 * np.eye(2)
     t = cfg.tracker
-    return filter_track(stamps, z, R, accel_sigma=t.accel_sigma, init_speed_sigma=t.init_speed_sigma)
+    return filter_track(
+        stamps, z, R, accel_sigma=t.accel_sigma, init_speed_sigma=t.init_speed_sigma, measured_dt=dt
+    )
 
 
 def _descriptors(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32]:

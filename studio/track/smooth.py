@@ -27,6 +27,13 @@ FloatArray = NDArray[np.float64]
 _H = np.eye(DIM_Z, DIM_X)
 
 
+def _h_at(delta: float) -> FloatArray:
+    """Measurement matrix of a position measured ``delta`` seconds after the state's time."""
+    H = np.eye(DIM_Z, DIM_X)
+    H[0, 2] = H[1, 3] = delta
+    return H
+
+
 @dataclass(frozen=True)
 class FilterRun:
     """A forward pass over K frames.
@@ -63,6 +70,7 @@ def filter_track(
     *,
     accel_sigma: float,
     init_speed_sigma: float,
+    measured_dt: FloatArray | None = None,
 ) -> FilterRun:
     """Run the CV Kalman filter forward over a track's frames.
 
@@ -72,6 +80,9 @@ def filter_track(
         R: (K, 2, 2) observation covariances, m² (ignored where ``z`` is NaN).
         accel_sigma: white-noise acceleration, m/s² (:func:`studio.track.models.white_accel_q`).
         init_speed_sigma: prior standard deviation of the velocity, m/s.
+        measured_dt: (K,) when each observation was measured, seconds after its frame stamp (None: 0): the
+            state stays the person's at the frame stamp and an observation made ``δ`` later is where they
+            were then, position + ``δ`` · velocity.
 
     Returns:
         The filtered states, covariances and the per-step dt and Q.
@@ -97,7 +108,8 @@ def filter_track(
         Qs[k] = white_accel_q(dts[k], accel_sigma)
         kf.predict(F=cv_matrix(dts[k]), Q=Qs[k])
         if hit[k]:
-            kf.update(z[k], R=R[k])
+            delta = 0.0 if measured_dt is None else float(measured_dt[k])
+            kf.update(z[k], R=R[k], H=_H if delta == 0.0 else _h_at(delta))
             kf.P = 0.5 * (kf.P + kf.P.T)
         xs[k], Ps[k] = kf.x, kf.P
     return FilterRun(stamps, xs, Ps, dts, Qs, hit)

@@ -95,3 +95,19 @@ def test_the_time_between_beams_is_read_and_a_placeholder_ignored() -> None:
     assert decode_scan(msg(1e-4)).time_increment == pytest.approx(1e-4)
     assert decode_scan(msg(0.5)).time_increment == 0.0  # a 50 s sweep is no time
     assert decode_scan(msg(float("nan"))).time_increment == 0.0
+
+
+@pytest.mark.parametrize(("roll", "step"), [(0.0, 1.0), (np.pi, 1.0), (0.0, -1.0), (np.pi, -1.0)])
+def test_the_beam_clock_follows_the_upright_beam_order(roll: float, step: float) -> None:
+    """Beam i at the scan's stamp + i · time_increment, after the frame stamp, in the order
+    :meth:`ScanInBase.upright` gives the beams (counter-clockwise, whichever way the scanner turns)."""
+    n = 5
+    ranges = (1.0 + 0.1 * np.arange(n)).astype(np.float32)  # tells the beams apart
+    scan = LaserScan(T0 + 20_000_000, "laser", 0.0, step * 0.1, ranges, 0.0, 10.0, None, 0.01)
+    sib = ScanInBase("/scan", scan, Pose3.from_xyz_rpy(0.0, 0.0, 0.3, roll=roll))
+    _, pts, _ = sib.upright()
+    beam = np.round((np.hypot(pts[:, 0], pts[:, 1]) - 1.0) / 0.1).astype(int)
+    assert sorted(beam) == list(range(n))
+    a, b = sib.beam_clock(T0)
+    np.testing.assert_allclose(a + b * np.arange(n), 0.02 + 0.01 * beam, atol=1e-9)
+    assert np.all(np.diff(np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))) > 0)  # counter-clockwise
