@@ -64,7 +64,12 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
             fov = abs(s.angle_increment) * max(len(s) - 1, 0)
             text = (
                 f"frame '{s.frame_id}', {len(s)} beams over {np.degrees(fov):.1f}°, "
-                f"range {s.range_min:g}–{_metres(s.range_max)} m"
+                f"range {s.range_min:g}–{_metres(s.range_max)} m, "
+                + (
+                    f"swept in {abs(s.time_increment) * max(len(s) - 1, 0) * 1e3:.1f} ms (time_increment)"
+                    if s.time_increment
+                    else "no time_increment (beams taken as measured at the header stamp)"
+                )
             )
         elif kind == "Odometry":
             o = decode_odometry(msg, first.log_ns)

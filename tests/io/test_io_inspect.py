@@ -33,6 +33,7 @@ def test_inspect_real_bag_with_rig(tmp_path: Path, capsys: pytest.CaptureFixture
     out = capsys.readouterr().out
     assert "/left_scan" in out
     assert "768 beams" in out
+    assert "swept in 49.9 ms (time_increment)" in out  # 768 beams 65 µs apart
     assert "7.51 Hz" in out
     assert "header stamps: first − log time +0.241 s" in out
     assert "frames: 435 yielded of 435 (scans of /left_scan)" in out
@@ -67,6 +68,7 @@ def test_inspect_synthetic_shows_tf_tree(
     assert "frame 'camera', 64×32, jpeg" in out
     assert "odom → base_link (dynamic, 201 samples, 50.0 Hz)" in out
     assert "base_link → front_laser (static)" in out
+    assert "no time_increment (beams taken as measured at the header stamp)" in out
     assert "frames: 40 yielded of 40 (camera images on /camera/image/compressed)" in out
 
 
