@@ -13,7 +13,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from studio.detect.laser.base import LaserDetections, merge_detections
 from studio.errors import StudioError
-from studio.geometry.se import Pose2
+from studio.geometry.se import Pose2, Pose3
 from studio.pipeline.base import LabelOptions
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "beam_clocks",
     "detect_again",
     "laser_in_base",
+    "moving_on",
     "odom_scans",
     "off_people",
     "open_beams_in_base",
@@ -194,6 +195,53 @@ def laser_in_base(
     points = np.concatenate(pts_all)
     laser_z = _heights(merged, points, float(np.mean(z_all)) if len(z_all) else 0.0)
     return merged, laser_z, points, np.array(origins), np.concatenate(owner)
+
+
+def moving_on(frame: Any, twist: tuple[float, float, float]) -> Any:
+    """``frame`` (a :class:`studio.io.Frame` of a rig without odometry) with its scans placed as a robot
+    moving at ``twist`` = ``(vx, vy, ω)`` in its base frame (m/s, rad/s) measured them: a scan taken before or
+    after the frame stamp from where the robot was then, and a scan that took time (``time_increment``)
+    de-skewed over its sweep (:meth:`studio.io.ScanInBase.deskewed`). Without odometry the synchroniser
+    knows no motion; scan matching's motion between the last frames stands in for it (constant velocity)."""
+    scans = []
+    for sib in frame.scans:
+        t0 = (sib.scan.stamp_ns - frame.stamp_ns) * 1e-9
+        pose = _moved(twist, t0).compose(sib.sensor_pose)
+        end = None
+        n, ti = len(sib.scan), float(sib.scan.time_increment)
+        if ti != 0.0 and n > 1:
+            end = _moved(twist, t0 + (n - 1) * ti).compose(sib.sensor_pose)
+        scans.append(replace(sib, sensor_pose=pose, sensor_pose_end=end))
+    return replace(frame, scans=tuple(scans))
+
+
+def _moved(twist: tuple[float, float, float], t: float) -> Pose3:
+    """Where the base is after ``t`` seconds at the constant ``twist`` (the planar exponential)."""
+    vx, vy, w = twist
+    th = w * t
+    if abs(th) < 1e-9:
+        dx, dy = vx * t, vy * t
+    else:
+        a, b = np.sin(th) / w, (1.0 - np.cos(th)) / w
+        dx, dy = a * vx - b * vy, b * vx + a * vy
+    return Pose3.from_xyz_rpy(float(dx), float(dy), 0.0, 0.0, 0.0, float(th))
+
+
+def _twist(before: tuple[int, Pose2], after: tuple[int, Pose2]) -> tuple[float, float, float]:
+    """The constant velocity ``(vx, vy, ω)`` in the base frame that takes the robot from one
+    ``(stamp_ns, T_world_base)`` to the next (zero when they are not 0–0.5 s apart)."""
+    dt = (after[0] - before[0]) * 1e-9
+    if not 0.0 < dt <= 0.5:
+        return (0.0, 0.0, 0.0)
+    rel = before[1].inverse().compose(after[1])
+    w = rel.yaw / dt
+    th = rel.yaw
+    if abs(th) < 1e-9:
+        return (rel.x / dt, rel.y / dt, w)
+    # invert the planar exponential of _moved
+    a, b = np.sin(th) / th, (1.0 - np.cos(th)) / th
+    det = a * a + b * b
+    return (float((a * rel.x + b * rel.y) / det / dt), float((-b * rel.x + a * rel.y) / det / dt), float(w))
 
 
 def beam_clocks(frame: Any) -> FloatArray:
@@ -365,6 +413,9 @@ def perceive(
     )
 
     t_img = t_las = t_io = t_wait = t_map = t_match = 0.0
+    # without odometry: scan matching's last pose, and the motion since the one before (see moving_on)
+    last_matched: tuple[int, Pose2] | None = None
+    twist: tuple[float, float, float] | None = None
     beam_deg: dict[str, float] = {}  # per laser topic: its angle between beams, degrees
     last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
@@ -417,6 +468,8 @@ def perceive(
             t2 = time.perf_counter()
             for sib in frame.scans:
                 beam_deg.setdefault(sib.topic, abs(float(np.degrees(sib.scan.angle_increment))))
+            if twist is not None:
+                frame = moving_on(frame, twist)
             if use_laser and laser_detector is not None:
                 laser, laser_z, points, origins, owner = laser_in_base(frame, laser_detector, leg_memory)
             else:
@@ -448,6 +501,9 @@ def perceive(
                 )
                 if not has_odometry:  # the robot's only motion: the outputs' odom frame is scan matching's
                     pf.robot_pose = pf.track_pose
+                    if last_matched is not None:
+                        twist = _twist(last_matched, (frame.stamp_ns, pf.track_pose))
+                    last_matched = (frame.stamp_ns, pf.track_pose)
                 t_match += time.perf_counter() - t3
                 t3 = time.perf_counter()
             if static_map is not None:

@@ -111,3 +111,31 @@ def test_the_beam_clock_follows_the_upright_beam_order(roll: float, step: float)
     a, b = sib.beam_clock(T0)
     np.testing.assert_allclose(a + b * np.arange(n), 0.02 + 0.01 * beam, atol=1e-9)
     assert np.all(np.diff(np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))) > 0)  # counter-clockwise
+
+
+def test_without_odometry_scan_matching_s_motion_places_and_deskews_the_scans() -> None:
+    """A robot without odometry spinning before the wall: the synchroniser knows no motion, so its scans are
+    bent; placed with a constant-velocity twist (scan matching's, between the last frames) they are
+    straight, and a scan taken before the frame stamp is placed where the robot was then."""
+    from studio.io import Frame
+    from studio.pipeline.perceive import _moved, _twist, moving_on
+
+    stamp = T0 + 300_000_000
+    spin = (0.0, 0.0, SPIN)
+    for late_s in (0.0, 0.03):  # the frame stamp after the scan's
+        scan = _wall_scan(stamp, SWEEP_S / (N - 1))
+        frame = Frame(
+            0, stamp + round(late_s * 1e9), None, (ScanInBase("/scan", scan, Pose3.identity()),), Pose2()
+        )
+        robot = Pose2(0.0, 0.0, SPIN * (0.3 + late_s))  # the robot at the frame stamp, odometry frame
+        for twist, bent in ((spin, False), ((0.0, 0.0, 0.0), True)):
+            (sib,) = moving_on(frame, twist).scans
+            world = robot.apply(sib.points_base()[:, :2])
+            err = np.abs(world[:, 1] - WALL_Y)
+            assert (err.max() > 0.3) if bent else (err.max() < 0.01), (late_s, twist)
+    # the twist that takes one pose to the next is the one _moved goes with
+    twist = (0.8, -0.2, 0.7)
+    step = _moved(twist, 0.1).to_pose2()
+    start = Pose2(1.0, 2.0, 0.3)
+    got = _twist((0, start), (100_000_000, start.compose(step)))
+    np.testing.assert_allclose(got, twist, atol=1e-9)
