@@ -25,6 +25,7 @@ __all__ = [
     "decode_scan",
     "decode_tf",
     "image_format",
+    "looks_dual_fisheye",
     "norm_frame",
     "stamp_ns_of",
     "yaw_from_quat",
@@ -274,3 +275,54 @@ def decode_tf(msg: Any) -> list[tuple[str, str, int, Pose3]]:
         except (AttributeError, TypeError, ValueError):
             continue
     return out
+
+
+def looks_dual_fisheye(image: NDArray[np.uint8]) -> bool:
+    """Whether a 2:1 image looks like a 360° camera's two unstitched fisheye circles, side by side on black
+    (a Ricoh Theta streams these unless it stitches), rather than an equirectangular panorama.
+
+    Three things must hold: the image's corners and the gaps between the circles at the top and bottom
+    middle are flat black (in a panorama they are the zenith and nadir rows: ceiling, sky or the robot); the
+    circles' middles are not dark; and on most of 24 rays from the circles' centres (30–55° off the
+    horizontal, up and down, both sides) the brightness falls to black within 4 % of half the height, at
+    the same distance from the centre on all of them: a rim. A panorama whose top and bottom rows were
+    blacked out has a black band instead, whose edge lies farther along the flatter rays.
+    """
+    img = np.asarray(image)
+    gray = img.mean(axis=2) if img.ndim == 3 else img.astype(np.float64)
+    h, w = gray.shape[:2]
+    if w != 2 * h or h < 32:
+        return False
+    k = max(2, h // 20)
+
+    def patch(cy: float, cx: float) -> NDArray[np.float64]:
+        y0 = int(np.clip(cy - k / 2, 0, h - k))
+        x0 = int(np.clip(cx - k / 2, 0, w - k))
+        return np.asarray(gray[y0 : y0 + k, x0 : x0 + k], dtype=np.float64)
+
+    gaps = [patch(y, x) for y in (0, h - 1) for x in (0, w / 2, w - 1)]
+    if not all(float(p.mean()) <= 10.0 and float(p.std()) <= 5.0 for p in gaps):
+        return False
+    r = h / 2
+    centres = [(r, w / 4), (r, 3 * w / 4)]
+    if min(float(patch(cy, cx).mean()) for cy, cx in centres) < 25.0:
+        return False
+    radii = np.linspace(0.75, 1.15, 41) * r  # steps of 1 % of the radius
+    rims = []
+    for cy, cx in centres:
+        for up in (30.0, 45.0, 55.0):
+            for a in np.deg2rad([up, 180.0 - up, 180.0 + up, 360.0 - up]):
+                ys = np.clip(np.round(cy - radii * np.sin(a)).astype(int), 0, h - 1)
+                xs = np.clip(np.round(cx + radii * np.cos(a)).astype(int), 0, w - 1)
+                prof = np.asarray(gray[ys, xs], dtype=np.float64)
+                fall = [
+                    i
+                    for i in range(5, 31)  # the rim between 0.8 and 1.05 of half the height
+                    if prof[i] >= 30.0 and prof[i + 4] <= 10.0 and np.all(prof[i + 4 :] <= 12.0)
+                ]
+                if fall:
+                    rims.append(radii[fall[0]] / r)
+    if len(rims) < 20:
+        return False
+    rim = np.asarray(rims)
+    return bool(np.median(np.abs(rim - np.median(rim))) <= 0.02)

@@ -24,7 +24,14 @@ import numpy as np
 
 from studio.geometry.se import Pose2, Pose3
 from studio.io.base import Frame, LaserScan, ScanInBase
-from studio.io.decode import decode_odometry, decode_panorama, decode_scan, norm_frame, stamp_ns_of
+from studio.io.decode import (
+    decode_odometry,
+    decode_panorama,
+    decode_scan,
+    looks_dual_fisheye,
+    norm_frame,
+    stamp_ns_of,
+)
 from studio.io.errors import RecordingError, TfError
 from studio.io.reader import Recording
 from studio.io.rig import Rig
@@ -427,6 +434,12 @@ def iter_frames(
                     "an equirectangular panorama is twice as wide as high (2:1): is this the 360° camera?"
                 )
             if pano_size is None:
+                if looks_dual_fisheye(pano.image):
+                    raise RecordingError(
+                        f"camera topic {cam_topic}: the images are two fisheye circles side by side, not an "
+                        "equirectangular panorama: record the camera's stitched output (Ricoh Theta: its "
+                        "equirectangular live-streaming mode) or stitch the images first"
+                    )
                 pano_size = (w, h)
             elif (w, h) != pano_size:
                 raise RecordingError(
