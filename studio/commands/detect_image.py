@@ -20,6 +20,7 @@ import numpy as np
 from studio.atomic import atomic_write_text
 from studio.detect.image import ImageDetections, get_image_detector
 from studio.errors import StudioError
+from studio.io.decode import looks_dual_fisheye
 
 __all__ = ["detection_record", "read_panorama", "run"]
 
@@ -37,6 +38,8 @@ def read_panorama(path: str | Path) -> np.ndarray:
     h, w = img.shape[:2]
     if w != 2 * h:
         raise StudioError(f"{p} is {w}×{h} px; an equirectangular panorama is twice as wide as high (2:1)")
+    if looks_dual_fisheye(img):
+        raise StudioError(f"{p} is two fisheye circles side by side, not an equirectangular panorama")
     return np.ascontiguousarray(img)
 
 

@@ -277,7 +277,7 @@ def decode_tf(msg: Any) -> list[tuple[str, str, int, Pose3]]:
     return out
 
 
-def looks_dual_fisheye(image: NDArray[np.uint8]) -> bool:
+def looks_dual_fisheye(image: NDArray[Any]) -> bool:
     """Whether a 2:1 image looks like a 360° camera's two unstitched fisheye circles, side by side on black
     (a Ricoh Theta streams these unless it stitches), rather than an equirectangular panorama.
 
