@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from studio.track.appearance import APPEARANCE_DIM, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.colour_cuts import ColourCutConfig, cut_colour_changes
+from studio.track.duplicates import DuplicateConfig, merge_duplicates
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.excursions import ExcursionConfig, detach_excursions
 from studio.track.fill import GapFillConfig, fill_gaps
@@ -86,6 +87,8 @@ class OfflineConfig:
             0.953; under three seeds of 5 mm noise 42.3 → 40.0 on average.
         gap_fill: options of giving the tracks' gaps the observations no track holds that lie on their way
             (:mod:`studio.track.fill`), or None to skip it.
+        duplicates: options of merging the tracklets of the online pass that follow one person twice, one
+            on each leg (:mod:`studio.track.duplicates`), or None to skip it.
         smooth: RTS-smooth the tracks (else the forward filter's estimates are output).
         interpolate_max_gap_s: gaps in a track up to this long (between the observations around them) get
             interpolated positions; longer gaps stay empty, seconds. The default is stitching's motion
@@ -117,6 +120,7 @@ class OfflineConfig:
         default_factory=lambda: GapFillConfig(radius=0.25, max_gap_s=0.5, max_appearance=math.inf)
     )
     gap_fill: GapFillConfig | None = field(default_factory=GapFillConfig)
+    duplicates: DuplicateConfig | None = field(default_factory=DuplicateConfig)
     smooth: bool = True
     interpolate_max_gap_s: float = 3.0
     interpolate_max_speed: float = 1.5
@@ -339,6 +343,8 @@ def track_offline(
     cfg = config or OfflineConfig()
     obs = list(observations)
     tracklets = _online_pass(obs, cfg)
+    if cfg.duplicates is not None:
+        tracklets, _ = merge_duplicates(obs, tracklets, cfg.duplicates)
     if cfg.claim is not None:
         tracklets, _ = fill_gaps(obs, tracklets, cfg.claim)
     colour_cut_pairs: list[tuple[int, int]] = []
@@ -372,6 +378,8 @@ def track_offline(
         merged, _ = reassign_encounters(
             obs, merged, estimate, accel_sigma=cfg.tracker.accel_sigma, config=cfg.encounters
         )
+    if cfg.duplicates is not None and len(merged) > 1:
+        merged, _ = merge_duplicates(obs, merged, cfg.duplicates)
     if cfg.swaps is not None and len(merged) > 1:
         merged, _ = repair_swaps(obs, merged, cfg.swaps)
     if cfg.excursions is not None:

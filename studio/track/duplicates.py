@@ -1,0 +1,129 @@
+"""Merge two tracks that are one person followed twice, each on one of their legs.
+
+A laser leg pair can go to two tracks, a leg each, where two people walk close enough for the laser to
+pair a leg of each (:meth:`studio.track.ukf.UkfTracker._split_pairs`). The same rule keeps a *duplicate*
+alive: when one person's legs were once detected as two people (a long stride, a leg hidden), a second
+track is born on one leg, and from then on every pair of that person is split between the two tracks, one
+leg each, 0.2–0.5 m apart: one person, two tracks, and identity switches between them (simulated
+``moving`` seeds 1–3 without a camera: 7 of 25 switches).
+
+Offline, the whole of both tracks is known. Two real people side by side are also detected apart: in
+many frames each has an observation of their own. A duplicate hardly ever is: in the frames where both
+tracks were observed, they took the two legs of one pair. Two tracks with at least ``min_shared`` such
+frames, and observed apart (by two different observations) in at most ``max_apart_share`` of the frames
+where both were observed, are merged: the track with more observations keeps the person, with the pair's
+own observation where the two had split it and the other's observation where it had none; the other keeps
+only its hits outside their common span.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from studio.track.base import Observations
+from studio.track.swaps import Hits
+
+__all__ = ["DuplicateConfig", "merge_duplicates"]
+
+
+@dataclass(frozen=True)
+class DuplicateConfig:
+    """Options of :func:`merge_duplicates`.
+
+    Attributes:
+        min_shared: two tracks are one person only after holding the two legs of one pair in this many
+            frames.
+        max_apart_share: ... and when they were observed apart (by two different observations) in at most
+            this share of those frames and the shared ones.
+    """
+
+    min_shared: int = 10
+    max_apart_share: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.min_shared < 1 or not 0.0 <= self.max_apart_share < 1.0:
+            raise ValueError("min_shared must be at least 1 and max_apart_share in [0, 1)")
+
+
+def _parent(o: Observations, row: int) -> int:
+    """The observation a row belongs to: the leg pair for one of its legs, else itself."""
+    if o.alt_of is None or o.alt_of[row] < 0:
+        return row
+    return int(o.alt_of[row])
+
+
+def _shared_and_apart(obs: Sequence[Observations], a: Hits, b: Hits) -> tuple[int, int]:
+    """Frames where tracks ``a`` and ``b`` were both observed: how many on the two legs of one pair, how
+    many by two different observations."""
+    rows_b = dict(b)
+    shared = apart = 0
+    for i, ra in a:
+        rb = rows_b.get(i)
+        if rb is None:
+            continue
+        if _parent(obs[i], ra) == _parent(obs[i], rb):
+            shared += 1
+        else:
+            apart += 1
+    return shared, apart
+
+
+def merge_duplicates(
+    obs: Sequence[Observations], tracks: dict[int, Hits], config: DuplicateConfig | None = None
+) -> tuple[dict[int, Hits], list[tuple[int, int]]]:
+    """Merge the tracks that follow one person twice (see the module docstring).
+
+    Args:
+        obs: the per-frame observations.
+        tracks: track id → its hits ``(frame, row)`` in frame order.
+        config: options.
+
+    Returns:
+        The tracks (a merged-away track keeps its hits outside the common span, or is gone), and the
+        ``(kept, merged)`` id pairs.
+    """
+    cfg = config or DuplicateConfig()
+    out = {tid: list(h) for tid, h in tracks.items() if h}
+    merges: list[tuple[int, int]] = []
+    while True:
+        best: tuple[int, int, int] | None = None  # shared frames, kept, merged
+        ids = sorted(out)
+        for n, ta in enumerate(ids):
+            for tb in ids[n + 1 :]:
+                a, b = out[ta], out[tb]
+                if a[-1][0] < b[0][0] or b[-1][0] < a[0][0]:
+                    continue
+                shared, apart = _shared_and_apart(obs, a, b)
+                if shared < cfg.min_shared or apart > cfg.max_apart_share * (shared + apart):
+                    continue
+                keep, drop = (ta, tb) if len(a) >= len(b) else (tb, ta)
+                if best is None or shared > best[0]:
+                    best = (shared, keep, drop)
+        if best is None:
+            return out, merges
+        _, keep, drop = best
+        out[keep], rest = _merged(obs, out[keep], out[drop])
+        if rest:
+            out[drop] = rest
+        else:
+            del out[drop]
+        merges.append((keep, drop))
+
+
+def _merged(obs: Sequence[Observations], keep: Hits, drop: Hits) -> tuple[Hits, Hits]:
+    """``keep`` with ``drop``'s person in their common span: a split pair's own observation where both
+    held its legs, ``drop``'s observation where ``keep`` had none (where they held different ones, keep's
+    stays); and what is left of ``drop`` (its hits before and after the common span)."""
+    lo, hi = max(keep[0][0], drop[0][0]), min(keep[-1][0], drop[-1][0])
+    rows = dict(keep)
+    for i, rb in drop:
+        if not lo <= i <= hi:
+            continue
+        ra = rows.get(i)
+        if ra is None:
+            rows[i] = rb  # (a leg: its pair's other leg may be someone else's)
+        elif _parent(obs[i], ra) == _parent(obs[i], rb):
+            rows[i] = _parent(obs[i], ra)
+    rest = [(i, r) for i, r in drop if not lo <= i <= hi]
+    return sorted(rows.items()), rest
