@@ -309,12 +309,18 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     many of them come in *undone* pairs: the person went from track A to track B and back to A within
     :data:`UNDONE_FRAMES` frames (two tracks exchanged people for a moment; each such pair is two
     switches)."""
+    from studio.evaluate.clear import ClearMOT
+
     gt_frames = {f.frame: f for f in gt.frames}
     last: dict[int, tuple[int, int]] = {}
     kinds: Counter[str] = Counter()
     events: list[tuple[int, int, int, int | None, str]] = []  # frame, person, from track, to track, text
+    clear = ClearMOT(radius=ev.radius)  # CLEAR MOT's own correspondences (they decide the switches)
     for fe in ev.frames:
-        match = {g: p for g, p, _ in fe.matches}
+        pred = None if fe.pred_frame is None else labels[fe.pred_frame]
+        cf = clear.update(gt_frames[fe.frame], pred, sequence=fe.sequence)
+        assert sorted(cf.switches) == sorted(fe.switch_ids)
+        match = {g: p for g, p, _ in cf.matches}
         for g in fe.switch_ids:
             people = {q.id: np.array([q.x, q.y]) for q in gt_frames[fe.frame].people}
             others = [float(np.hypot(*(people[g] - v))) for k, v in people.items() if k != g]
@@ -324,7 +330,7 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             kinds[kind] += 1
             text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
-                f"nearest other {near:4.2f} m: track {was} (its per-frame match in frame {before}) "
+                f"nearest other {near:4.2f} m: track {was} (its last match, frame {before}) "
                 f"-> {match.get(g)} [{kind}]"
             )
             events.append((fe.frame, g, was, match.get(g), text))
