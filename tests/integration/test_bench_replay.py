@@ -74,11 +74,11 @@ def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.Capt
     out = capsys.readouterr().out
     assert (
         "frame    15 person   3 at  6.5 m, nearest other 0.50 m: "
-        "track 8 (its per-frame match in frame 14) -> 9 [encounter] undone" in out
+        "track 8 (its last match, frame 14) -> 9 [encounter] undone" in out
     )
     assert (
         "frame    12 person   5 at  1.2 m, nearest other 3.00 m: "
-        "track 10 (its per-frame match in frame 11) -> 11 [other]\n" in out
+        "track 10 (its last match, frame 11) -> 11 [other]\n" in out
     )
 
 
