@@ -82,6 +82,31 @@ def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.Capt
     )
 
 
+def test_switches_names_the_track_clear_mot_kept_not_the_nearest(capsys: pytest.CaptureFixture[str]) -> None:
+    """Person 1 is on track 1; in frames 3-5 track 2 comes nearer to them (0.01 m) while track 1 stays
+    within the radius (0.15 m): CLEAR MOT keeps its correspondence (no switch), the per-frame detection
+    matching takes track 2. Track 1 ends at frame 6: the switch is from track 1 to track 2."""
+    gt, pred = [], []
+    for i in range(10):
+        gt.append(_frame(i, {1: (2.0, 0.0)}))
+        p = {}
+        if i < 6:
+            p[1] = (2.15 if i >= 3 else 2.0, 0.0)
+        if i >= 3:
+            p[2] = (2.01, 0.0)
+        pred.append(_frame(i, p))
+    truth = LabelSet.from_frames(gt)
+    ev = evaluate(LabelSet.from_frames(pred), truth)
+    assert ev.frames[4].matches[0][1] == 2  # the detection matching
+    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    assert sum(kinds.values()) == 1
+    out = capsys.readouterr().out
+    assert (
+        "frame     6 person   1 at  2.0 m, nearest other  inf m: track 1 (its last match, frame 5) -> 2"
+        in (out)
+    )
+
+
 def _walk(swap: bool) -> tuple[list[Observations], dict[int, list[tuple[int, int]]]]:
     """Two people walking side by side 1 m apart at 1 m/s, observed at 10 Hz; each wears other colours.
     Their tracks as a tracker that kept them apart (``swap`` False) or exchanged them halfway made them."""
