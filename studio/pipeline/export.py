@@ -76,6 +76,7 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         else "- no camera",
     ]
     beam_deg = (getattr(result, "counts", None) or {}).get("laser_beam_deg") or {}
+    sweep_ms = (getattr(result, "counts", None) or {}).get("laser_sweep_ms") or {}
     for las in rig.lasers:
         pose = las.pose.as_dict() if las.pose is not None else "from TF in the recording"
         line = f"- laser `{las.topic}`, pose: {pose}"
@@ -85,6 +86,13 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
             if (options.laser_detector or "classical") == "classical" and options.sources != "camera":
                 coarse = ClassicalLaserDetector().is_coarse(step)
                 line += " (coarse-beam leg model)" if coarse else " (leg model for fine beams)"
+        sweep = sweep_ms.get(las.topic)
+        if sweep is not None:
+            line += (
+                f", swept in {sweep:.1f} ms (each beam placed and timed by its own measurement time)"
+                if sweep > 0
+                else ", no beam timing in its scans (all beams taken at the scan's stamp)"
+            )
         lines.append(line)
     odo = rig.odometry
     matched = (

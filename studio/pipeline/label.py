@@ -591,6 +591,7 @@ def label_recording(
         "views_run": info["views_run"],
         "view_columns_run": info["view_columns_run"],
         "laser_beam_deg": info["laser_beam_deg"],
+        "laser_sweep_ms": info["laser_sweep_ms"],
     }
     image_dets = [(f.index, f.stamp_ns, f.image) for f in frames if f.image is not None]
     return LabelRun(labels, fused, sizes.get("size"), camera, timings, counts, notes, image_dets)

@@ -417,6 +417,7 @@ def perceive(
     last_matched: tuple[int, Pose2] | None = None
     twist: tuple[float, float, float] | None = None
     beam_deg: dict[str, float] = {}  # per laser topic: its angle between beams, degrees
+    sweep_ms: dict[str, float] = {}  # ... and the time from its first beam to its last (0: not said), ms
     last_image_ns: int | None = None
     frames: list[PerceptionFrame] = []
     # frames read but not yet handed on, with their image detection still running (or None)
@@ -468,6 +469,9 @@ def perceive(
             t2 = time.perf_counter()
             for sib in frame.scans:
                 beam_deg.setdefault(sib.topic, abs(float(np.degrees(sib.scan.angle_increment))))
+                sweep_ms.setdefault(
+                    sib.topic, abs(float(sib.scan.time_increment)) * max(len(sib.scan) - 1, 0) * 1e3
+                )
             if twist is not None:
                 frame = moving_on(frame, twist)
             if use_laser and laser_detector is not None:
@@ -539,6 +543,7 @@ def perceive(
         "view_columns_run": getattr(image_detector, "view_columns_run", None),
         "frames": len(frames),
         "laser_beam_deg": beam_deg,
+        "laser_sweep_ms": sweep_ms,
         "use_camera": use_camera,
         "use_laser": use_laser,
         "rig": rig,

@@ -63,6 +63,30 @@ def test_the_dataset_card_says_how_the_labels_were_made(run: Path) -> None:
 def test_run_json_gives_each_lasers_beam_step(run: Path) -> None:
     counts = json.loads((run / "run.json").read_text())["counts"]
     assert counts["laser_beam_deg"] == {"/scan_front": pytest.approx(0.25), "/scan_rear": pytest.approx(0.25)}
+    assert counts["laser_sweep_ms"] == {"/scan_front": 0.0, "/scan_rear": 0.0}  # the simulator's: instant
+
+
+def test_the_dataset_card_says_how_each_laser_s_beams_were_timed() -> None:
+    from types import SimpleNamespace
+
+    from studio.pipeline.export import dataset_card
+
+    rig = SimpleNamespace(
+        base_frame="laser",
+        camera=None,
+        odometry=None,
+        lasers=[SimpleNamespace(topic=t, pose=None) for t in ("/a", "/b")],
+    )
+    counts = {"laser_beam_deg": {"/a": 0.35, "/b": 0.35}, "laser_sweep_ms": {"/a": 49.9, "/b": 0.0}}
+    result = SimpleNamespace(labels=[], notes=[], image_size=None, counts=counts)
+    card = dataset_card(result, options=LabelOptions(), recording=Path("r.bag"), rig=rig, n_images=0)
+    a = next(line for line in card.splitlines() if line.startswith("- laser `/a`"))
+    b = next(line for line in card.splitlines() if line.startswith("- laser `/b`"))
+    assert a.endswith(
+        "beams 0.35° apart (leg model for fine beams), swept in 49.9 ms "
+        "(each beam placed and timed by its own measurement time)"
+    )
+    assert b.endswith("no beam timing in its scans (all beams taken at the scan's stamp)")
 
 
 def _card(options: LabelOptions, lasers: list[str], beam_deg: dict[str, float]) -> str:
