@@ -86,29 +86,42 @@ def merge_duplicates(
     cfg = config or DuplicateConfig()
     out = {tid: list(h) for tid, h in tracks.items() if h}
     merges: list[tuple[int, int]] = []
-    while True:
-        best: tuple[int, int, int] | None = None  # shared frames, kept, merged
-        ids = sorted(out)
-        for n, ta in enumerate(ids):
-            for tb in ids[n + 1 :]:
-                a, b = out[ta], out[tb]
-                if a[-1][0] < b[0][0] or b[-1][0] < a[0][0]:
-                    continue
-                shared, apart = _shared_and_apart(obs, a, b)
-                if shared < cfg.min_shared or apart > cfg.max_apart_share * (shared + apart):
-                    continue
-                keep, drop = (ta, tb) if len(a) >= len(b) else (tb, ta)
-                if best is None or shared > best[0]:
-                    best = (shared, keep, drop)
-        if best is None:
-            return out, merges
-        _, keep, drop = best
+    # shared frames of each pair that qualifies, ``(ta, tb)`` with ta < tb; a merge re-measures only the
+    # pairs of the two tracks it changed
+    found: dict[tuple[int, int], int] = {}
+
+    def measure(pairs: list[tuple[int, int]]) -> None:
+        for ta, tb in pairs:
+            found.pop((ta, tb), None)
+            a, b = out[ta], out[tb]
+            if a[-1][0] < b[0][0] or b[-1][0] < a[0][0]:
+                continue
+            shared, apart = _shared_and_apart(obs, a, b)
+            if shared >= cfg.min_shared and apart <= cfg.max_apart_share * (shared + apart):
+                found[ta, tb] = shared
+
+    ids = sorted(out, key=lambda t: out[t][0][0])
+    pairs = []
+    for n, ta in enumerate(ids):  # by start: only tracks that begin before ta ends can overlap it
+        for tb in ids[n + 1 :]:
+            if out[tb][0][0] > out[ta][-1][0]:
+                break
+            pairs.append((min(ta, tb), max(ta, tb)))
+    measure(pairs)
+    while found:
+        (ta, tb), _ = max(found.items(), key=lambda kv: (kv[1], -kv[0][0], -kv[0][1]))
+        keep, drop = (ta, tb) if len(out[ta]) >= len(out[tb]) else (tb, ta)
         out[keep], rest = _merged(obs, out[keep], out[drop])
         if rest:
             out[drop] = rest
         else:
             del out[drop]
+            for key in [k for k in found if drop in k]:
+                del found[key]
         merges.append((keep, drop))
+        changed = [t for t in (keep, drop) if t in out]
+        measure(sorted({(min(t, u), max(t, u)) for t in changed for u in out if u != t}))
+    return out, merges
 
 
 def _merged(obs: Sequence[Observations], keep: Hits, drop: Hits) -> tuple[Hits, Hits]:
