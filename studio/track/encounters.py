@@ -25,11 +25,13 @@ it exchange tails made things worse, session 9), and colours alone are fooled by
 neighbour; together they decide the whole encounter at once. Without colours (a laser-only rig) the
 tracks leave as they came, and :mod:`studio.track.swaps` and stitching have the last word. When only one
 track has colours before the encounter (the camera did not describe the other: someone standing half
-hidden), they take part only when they leave no doubt: both tails have colours, and the described
-track's own tail differs from them by more than ``one_side_differ`` ΔE while the other tail matches them
-within ``one_side_match``; the undescribed track's observations then cost half the cap whoever takes them,
-and so does its side of leaving. Letting one side's colours take part always got as many encounters wrong
-as right (session 23).
+hidden), they take part only when they leave no doubt: the other tail has colours and matches them within
+``one_side_match``, and the described track's own tail differs from them by more than ``one_side_differ``
+ΔE or has no colours (the camera did not describe whom it left with: until session 43 this case was left
+to motion, and on ``moving`` seed 14 a person walking past someone who stopped took the stopped one's
+track); the undescribed track's observations then cost half the cap whoever takes them, and so does its
+side of leaving. Letting one side's colours take part always got as many encounters wrong as right
+(session 23).
 
 Decided together, three or four tracks that come close at once (all ways of giving each frame's
 observations to them, every permutation of their tails) did not do better than pair by pair (session 18,
@@ -94,7 +96,8 @@ class EncounterConfig:
         split_legs: a laser leg pair may go one leg to each of two tracks (see the module docstring).
         one_side_match: when only one track has colours before the encounter, the other track's tail must
             match them within this, ΔE …
-        one_side_differ: … and its own tail differ from them by more than this, for colours to take part.
+        one_side_differ: … and its own tail (where described) differ from them by more than this, for colours
+            to take part.
 
     ``pad_frames`` 10 and ``margin`` 5 (session 16; before 5 and 10): on 16 simulated ``moving`` recordings
     (seeds 1–8 of simulator versions 2 and 3) identity switches 128 → 112, F1 and MOTA up 0.001–0.002, IDF1
@@ -367,14 +370,18 @@ def _one_side_decides(
     before: list[NDArray[np.float32] | None], after: list[NDArray[np.float32] | None], cfg: EncounterConfig
 ) -> bool:
     """Whether the colours of the tracks described before an encounter leave no doubt where they went:
-    every tail has colours, and each described track's own tail differs from its colours by more than
-    ``one_side_differ`` while another tail matches them within ``one_side_match``."""
-    if any(c is None for c in after):
-        return False
+    for each described track, every other track's tail has colours and one of them matches its colours
+    within ``one_side_match``, while its own tail differs from them by more than ``one_side_differ`` or has
+    no colours (the camera did not describe it after the encounter: someone standing half hidden)."""
     for t, ref in enumerate(before):
         if ref is None:
             continue
-        d = [appearance_distance(c, ref) for c in after]  # type: ignore[arg-type]
-        if d[t] <= cfg.one_side_differ or min(d[:t] + d[t + 1 :]) >= cfg.one_side_match:
+        others = [c for s, c in enumerate(after) if s != t]
+        if any(c is None for c in others):
+            return False
+        if min(appearance_distance(c, ref) for c in others if c is not None) >= cfg.one_side_match:
+            return False
+        own = after[t]
+        if own is not None and appearance_distance(own, ref) <= cfg.one_side_differ:
             return False
     return True

@@ -319,3 +319,21 @@ def test_one_sides_colours_decide_only_when_they_leave_no_doubt():
     assert 10.0 < appearance_distance(RED, near_red) < EncounterConfig().one_side_differ
     fixed, _ = _run(_half_described(near_red), tracks)
     assert _rows(fixed[1])[100] == 1
+
+
+def test_one_sides_colours_decide_when_its_own_tail_is_not_described():
+    """Only P is ever described (RED; Q stands half hidden throughout), and the online tracker let P's track
+    leave with Q. P's track's own tail has no colours to differ from P's, but the other track's tail matches
+    them: the tracks leave exchanged. Where P is not described after the meeting either, no tail matches,
+    and motion alone lets them leave as they came."""
+    hidden = np.full(6, np.nan, np.float32)
+    tracks = {1: [(i, int(i >= 40)) for i in range(120)], 2: [(i, int(i < 40)) for i in range(120)]}
+    fixed, changed = _run(_half_described(hidden), tracks)
+    assert changed == 1
+    assert _rows(fixed[1]) == [0] * 120
+    assert _rows(fixed[2]) == [1] * 120
+    obs = _half_described(hidden)
+    for i in range(45, 120):
+        obs[i] = replace(obs[i], appearance=np.full((2, 6), np.nan, np.float32))
+    fixed, _ = _run(obs, tracks)
+    assert _rows(fixed[1])[100] == 1
