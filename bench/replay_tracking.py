@@ -9,8 +9,9 @@
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs once
 per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a contract:
-delete it when the detectors change). Each call then runs the static-world filter, fusion and offline tracking
-exactly as ``studio label`` does and prints the metrics at 0.2 m; ``--switches`` also lists every identity
+delete it when the detectors change; one stored before session 42's beam times is named when loaded). Each
+call then runs the static-world filter, fusion and offline tracking exactly as ``studio label`` does and
+prints the metrics at 0.2 m; ``--switches`` also lists every identity
 switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
 before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
 person had gone unmatched for more than 10 frames; or *other*), marks the switches that were *undone* (the
@@ -95,6 +96,8 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
+    if any(f.laser is not None and f.beam_clocks is None for f in frames):
+        print(f"{path.name}: stored before beam times were kept (session 42); delete it to make it again")
     if options.scan_matching and frames and frames[0].track_pose is None:  # stored before scan matching
         matcher = ScanOdometry(ScanMatchConfig(every=2))  # as studio label's pass one
         for f in frames:
