@@ -36,7 +36,8 @@ under a new id, which the evaluator counts as a switch as well.
 Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
 unlinked, and chains (A → B → C) follow. Tracklets without usable colours (``min_views``) attach by motion
 only, after the described ones are linked; a chain of them that nothing continues goes into the gap of a
-re-identification when it lies in that gap near both ends (someone far away, standing still).
+re-identification when it lies in that gap near both ends (someone far away, standing still), and so does
+a piece described by only a few crops whose colours matched no one's closely enough (``fill_max_views``).
 """
 
 from __future__ import annotations
@@ -144,6 +145,13 @@ class StitchConfig:
             identity switches, laser only 112 → 97.
         fill_distance, fill_speed: a chain of undescribed tracklets goes into the gap of a
             re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
+        fill_max_views: a described tracklet that nothing links, described by at most this many
+            observations, may go into such a gap like an undescribed one when its colours differ from both
+            ends' by at most ``max_appearance`` (the median of a few crops of someone far away is too
+            noisy for the ``reid_max_appearance`` of a re-identification of its own). Session 44
+            (``docs/results.md``): ``moving`` seed 8 two switches fewer, a four-view piece of someone 8 m
+            away 15 ΔE off their colours; a walker in other clothes seen in ten views (16 ΔE off) stays
+            out. 0: only undescribed pieces.
         lost_max_gap_s: longest gap bridged without colours (not both sides described) and without a motion
             bridge, seconds (0: never).
         lost_min_duration_s: both tracklets of such a link span at least this long, seconds.
@@ -173,6 +181,7 @@ class StitchConfig:
     overlap_cost: float = 0.25
     fill_distance: float = 1.0
     fill_speed: float = 0.5
+    fill_max_views: int = 5
     lost_max_gap_s: float = 20.0
     lost_min_duration_s: float = 2.0
     lost_distance: float = 1.0
@@ -413,8 +422,10 @@ def _fill_gaps(
     """Put chains of undescribed tracklets that nothing continues into the gap of a re-identification.
 
     Pass 1 joins A → C across a long gap by colours; the pieces the camera could not describe in between
-    (someone far away, standing where A ended) are then neither before nor after anything. A free chain of
-    them goes between A and C when it lies inside the gap in time and each joint is at most
+    (someone far away, standing where A ended) are then neither before nor after anything. So is a piece
+    the camera described in a few crops only (``fill_max_views``) whose noisy colours were too far from
+    A's for a re-identification; it counts as one of them where its colours are within ``max_appearance``
+    of both A's and C's. A free chain of them goes between A and C when it lies inside the gap in time and each joint is at most
     ``fill_distance + fill_speed · gap`` long; several go in one after another in time. Where it fits
     several gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the
     gates of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only
@@ -425,7 +436,11 @@ def _fill_gaps(
     prv = {b: a for a, b in links}
     free = []  # (head, tail) of chains of undescribed tracklets linked to nothing outside themselves
     for t in tracklets:
-        if t.track_id in prv or t.track_id in described:
+        if t.track_id in prv:
+            continue
+        if t.track_id in described:
+            if t.track_id not in nxt and t.n_app <= cfg.fill_max_views:  # a few noisy views, linked to nothing
+                free.append((t, t))
             continue
         chain = [t.track_id]
         while chain[-1] in nxt:
@@ -454,6 +469,11 @@ def _fill_gaps(
         for (a, c), cur in hosts.items():
             end = by_id[c]
             if head.start_ns <= cur.end_ns or tail.end_ns >= end.start_ns:
+                continue
+            if head.track_id in described and any(
+                appearance_distance(head.app, by_id[h].app) > cfg.max_appearance  # type: ignore[arg-type]
+                for h in (a, c)
+            ):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is not None and j2 is not None and (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:

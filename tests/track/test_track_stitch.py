@@ -206,6 +206,20 @@ def test_undescribed_pieces_go_into_the_gap_of_a_re_identification_nearest_them(
     assert stitch_links([a, away, c]) == [(0, 3)]
 
 
+def test_a_described_piece_that_matched_no_one_goes_into_the_gap_of_a_re_identification():
+    # blue walks away and is re-identified 25 s later; in between the camera saw them for a moment far
+    # away (four noisy views, 15 ΔE from their colours: too far for a re-identification of its own, within
+    # a motion link's colour gate), where blue was lost
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=still, app=BLUE)
+    c = tl(2, 35.0, 40.0, (8.0, 0.1), (8.0, 0.1), v=still, app=BLUE)
+    noisy_blue = BLUE + np.array([0.0, 0.0, 15.0, 0.0, 0.0, 0.0], np.float32)
+    piece = tl(1, 14.0, 16.0, (8.1, 0.0), (8.1, 0.1), v=still, app=noisy_blue, views=4)
+    assert stitch_links([a, piece, c]) == [(0, 1), (1, 2)]
+    # someone in red there is someone else: the piece stays out
+    assert stitch_links([a, replace(piece, app=RED, app_start=RED, app_end=RED), c]) == [(0, 2)]
+
+
 def test_an_undescribed_piece_goes_into_the_gap_it_continues_by_motion():
     # two people wait at one spot and are both re-identified much later; a colourless piece starts 2.4 s
     # after red left, where red was walking to, but nearer where blue (gone for 6.4 s) stood: it continues red
