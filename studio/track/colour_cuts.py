@@ -15,7 +15,10 @@ later part whose median colours differ most, provided they differ by at least ``
 observations, each part is consistent (its observations' median difference from its own median at most
 ``max_spread``) and the ``views`` observations on each side of the split are nearer their own part's
 median than the other's (a short run of a neighbour's colours, from a box paired with the wrong laser
-detection, is no change). The cut goes where the track went unobserved for longest between the last
+detection, is no change). Observations like neither part (``min_change`` or more from both medians: a
+crop of the two people at once, as the one walks in where the other walks out) take no side; until
+session 44 one such crop next to the change blocked every split near it (simulated ``moving`` seed 18
+frame 680: 41 ΔE, 25 and 34 views either side, two such crops, no cut). The cut goes where the track went unobserved for longest between the last
 described observation before the change and the first one after (it lost the one person there and took
 the other, as at a door; the middle one of equally long gaps, counted in frames, so neither the stamps'
 jitter nor a frame the sensor dropped counts), or halfway between the two when the track missed no frame
@@ -126,7 +129,11 @@ def _split_holds(
     d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)  # (., 2): to before, after
     if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > config.max_spread:
         return False
+    # a crop like neither part (two people in one box, next to the change) takes no side
+    d_b, d_a = d_b[d_b.min(axis=1) < config.min_change], d_a[d_a.min(axis=1) < config.min_change]
     end, start = d_b[-config.views :], d_a[: config.views]
+    if not (len(end) and len(start)):
+        return False
     return not (np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]))
 
 

@@ -38,6 +38,17 @@ def test_a_few_views_at_either_end_are_cut_off_when_the_change_is_large():
     assert colour_change(_colours((A, 2), (far, 30)), ColourCutConfig(end_views=0)) is None
 
 
+def test_crops_like_neither_part_next_to_the_change_take_no_side():
+    # one person walks out of view as another walks in at that spot; the two crops between show both
+    # (simulated moving seed 18 frames 668 and 672: 27.8 / 17.6 and 19.7 / 22.5 ΔE from the two parts)
+    nearer_b = A + np.array([0.0, 20.0, 16.0, 0.0, 0.0, 0.0])  # 25.6 ΔE from A, 18.9 from B
+    nearer_a = A + np.array([0.0, 10.0, 16.0, 0.0, 0.0, 0.0])  # 18.9 from A, 25.6 from B
+    colours = _colours((A, 20), (nearer_b, 1), (nearer_a, 1), (B, 15))
+    assert colour_change(colours, ColourCutConfig()) in (20, 21, 22)
+    # crops like the *other* part still take sides, and here they block every split (as before)
+    assert colour_change(_colours((A, 20), (B, 1), (A, 1), (B, 15)), ColourCutConfig()) is None
+
+
 @pytest.mark.parametrize(
     "runs",
     [
@@ -223,8 +234,10 @@ def _change_by_brute_force(colours, cfg):
             d_b, d_a = appearance_matrix(before, meds), appearance_matrix(after, meds)
             if max(np.median(d_b[:, 0]), np.median(d_a[:, 1])) > cfg.max_spread:
                 continue
-            end, start = d_b[-cfg.views :], d_a[: cfg.views]
-            if np.any(end[:, 0] > end[:, 1]) or np.any(start[:, 1] > start[:, 0]):
+            # the views next to the split that are like one part or the other (within min_change)
+            end = [d for d in d_b if min(d) < cfg.min_change][-cfg.views :]
+            start = [d for d in d_a if min(d) < cfg.min_change][: cfg.views]
+            if not end or not start or any(d[0] > d[1] for d in end) or any(d[1] > d[0] for d in start):
                 continue
             best = (change, m)
         return best
