@@ -18,11 +18,11 @@ median than the other's (a short run of a neighbour's colours, from a box paired
 detection, is no change). Observations like neither part (``min_change`` or more from both medians: a
 crop of the two people at once, as the one walks in where the other walks out) take no side; until
 session 44 one such crop next to the change blocked every split near it (simulated ``moving`` seed 18
-frame 680: 41 ΔE, 25 and 34 views either side, two such crops, no cut). The cut goes where the track went unobserved for longest between the last
-described observation before the change and the first one after (it lost the one person there and took
-the other, as at a door; the middle one of equally long gaps, counted in frames, so neither the stamps'
-jitter nor a frame the sensor dropped counts), or halfway between the two when the track missed no frame
-in between; each piece is searched again.
+frame 680: 41 ΔE, 25 and 34 views either side, two such crops, no cut). The cut goes where the track went
+unobserved for longest between the last described observation before the change and the first one after
+(it lost the one person there and took the other, as at a door; the middle one of equally long gaps,
+counted in frames, so neither the stamps' jitter nor a frame the sensor dropped counts), or halfway
+between the two when the track missed no frame in between; each piece is searched again.
 
 At either end of a tracklet fewer views suffice when the change is large: the first (or last)
 ``end_views`` to ``views - 1`` described observations are cut off when their median and the rest's differ by

@@ -425,11 +425,12 @@ def _fill_gaps(
     (someone far away, standing where A ended) are then neither before nor after anything. So is a piece
     the camera described in a few crops only (``fill_max_views``) whose noisy colours were too far from
     A's for a re-identification; it counts as one of them where its colours are within ``max_appearance``
-    of both A's and C's. A free chain of them goes between A and C when it lies inside the gap in time and each joint is at most
-    ``fill_distance + fill_speed · gap`` long; several go in one after another in time. Where it fits
-    several gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the
-    gates of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only
-    the one who left just before the piece starts continues into it), then where the joints are shortest.
+    of both A's and C's. A free chain of them goes between A and C when it lies inside the gap in time and
+    each joint is at most ``fill_distance + fill_speed · gap`` long; several go in one after another in
+    time. Where it fits several gaps, it goes where more of its joints are motion links (a short gap a
+    walker bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot leave gaps
+    that overlap for long, but only the one who left just before the piece starts continues into it), then
+    where the joints are shortest.
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
@@ -439,7 +440,7 @@ def _fill_gaps(
         if t.track_id in prv:
             continue
         if t.track_id in described:
-            if t.track_id not in nxt and t.n_app <= cfg.fill_max_views:  # a few noisy views, linked to nothing
+            if t.track_id not in nxt and t.n_app <= cfg.fill_max_views:  # a few noisy views, no link
                 free.append((t, t))
             continue
         chain = [t.track_id]
