@@ -4,11 +4,7 @@ Each track runs filterpy's :class:`~filterpy.kalman.UnscentedKalmanFilter` with 
 of :mod:`studio.track.models`; the time step comes from the integer-ns stamps (never a fixed rate) and each
 observation brings its own measurement covariance. Association is one-to-one by the Hungarian algorithm on
 the negative log-likelihood ``d² + log det S`` of the gated pairs (``d²`` the squared Mahalanobis distance,
-gate from the χ² distribution with 2 degrees of freedom). An observation measured ``δ`` after the frame's
-stamp (``Observations.dt_s``: a scanner's beams sweep, a scan a little off the camera frame) is compared
-with and updates the track's position ``δ`` later (``p + δ·v``, measurement matrix ``[I δI]``); the state
-stays at the stamp. Until session 44 only the offline smoother did so, and on 10 Hz sweeping scanners
-without a camera a third of what the sweep cost was left.
+gate from the χ² distribution with 2 degrees of freedom).
 
 Life cycle: an unmatched observation starts a *tentative* track; it becomes *confirmed* after M hits within
 ``confirm_window_s`` seconds of its birth, and dies at the first frame after that window without them (or
@@ -112,27 +108,6 @@ class UkfTrackerConfig:
         chi2_gate(self.gate_prob)
 
 
-def _pos_at(x: FloatArray, dt: float) -> FloatArray:
-    """The position ``dt`` seconds after the state's time: ``x`` (4,) → ``z`` (2,)."""
-    return np.array([x[0] + dt * x[2], x[1] + dt * x[3]])
-
-
-def _predicted(group: list[_Track], dt: FloatArray | None) -> tuple[FloatArray, FloatArray]:
-    """The tracks' predicted positions and their covariances: (T, 2), (T, 2, 2) at the stamp, or (T, N, 2),
-    (T, N, 2, 2) at each observation's measurement time when ``dt`` (N,) has any non-zero."""
-    zp = np.array([t.z_pred for t in group])
-    Pz = np.array([t.Pz for t in group])
-    if dt is None or not np.any(dt):
-        return zp, Pz
-    x = np.array([t.ukf.x for t in group])  # the predicted states (the filter's prior after predict)
-    P = np.array([t.ukf.P for t in group])
-    d = dt[None, :, None]
-    zp_dt = x[:, None, :2] + d * x[:, None, 2:4]
-    cross = P[:, None, :2, 2:] + P[:, None, 2:, :2]
-    Pz_dt = P[:, None, :2, :2] + d[..., None] * cross + (d**2)[..., None] * P[:, None, 2:, 2:]
-    return zp_dt, Pz_dt
-
-
 @dataclass
 class _Track:
     track_id: int
@@ -219,7 +194,8 @@ class UkfTracker:
             cols = np.flatnonzero(free)
             if not group or not len(cols):
                 continue
-            zp, Pz = _predicted(group, None if obs.dt_s is None else obs.dt_s[cols])
+            zp = np.array([t.z_pred for t in group])
+            Pz = np.array([t.Pz for t in group])
             d2, logdet = mahalanobis_costs(zp, Pz, obs.xy[cols], obs.cov[cols])
             cost = d2 + logdet if cfg.use_logdet else d2
             allowed = d2 <= self._gate
@@ -330,11 +306,7 @@ class UkfTracker:
                 t.appearance = (m * old + (1.0 - m) * new).astype(np.float32)
             else:
                 t.appearance = new.copy()
-        dt = 0.0 if obs.dt_s is None else float(obs.dt_s[row])
-        if dt == 0.0:
-            t.ukf.update(obs.xy[row], R=obs.cov[row])
-        else:
-            t.ukf.update(obs.xy[row], R=obs.cov[row], hx=_pos_at, dt=dt)
+        t.ukf.update(obs.xy[row], R=obs.cov[row])
         t.ukf.P = 0.5 * (t.ukf.P + t.ukf.P.T)
         t.det_index = int(obs.det_index[row])
         t.last_hit_ns = obs.stamp_ns

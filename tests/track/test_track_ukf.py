@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
@@ -199,27 +197,3 @@ def test_appearance_gate_prevents_swaps_between_close_people(sim):
     n_plain, _ = sim.id_switches(plain, det.owner)
     n_app, _ = sim.id_switches(with_app, det.owner)
     assert n_app < n_plain
-
-
-def test_an_observation_is_compared_with_where_the_track_was_when_it_was_measured():
-    # a walker at 1.5 m/s seen by a sweeping scanner: every other frame's detection was measured 75 ms
-    # after the frame's stamp, the last one 0.3 s after it (a scan far off the camera frame)
-    def run(with_times: bool) -> tuple[list[float], int]:
-        tr = UkfTracker()
-        errors, det = [], -2
-        for k in range(40):
-            t, dt = 0.1 * k, (0.0, 0.075)[k % 2] if k < 39 else 0.3
-            o = obs(t, (1.5 * (t + dt), 0.0), sigma=0.03)
-            if with_times:
-                o = replace(o, dt_s=np.array([dt]))
-            for e in tr.step(o):  # none while tentative
-                errors.append(float(e.xy[0]) - 1.5 * t)
-                det = e.det_index
-        return errors[-10:-1], det
-
-    errors, det = run(True)
-    assert np.max(np.abs(errors)) < 0.005  # the state stays at the stamps
-    assert det == 0  # 0.45 m ahead of the walker at the stamp, but where they were when measured
-    errors, det = run(False)  # taken at the stamps, the estimate zigzags 2-9 cm ahead and the last is lost
-    assert np.max(np.abs(errors)) > 0.05
-    assert det == -1
