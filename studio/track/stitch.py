@@ -435,7 +435,7 @@ def _fill_gaps(
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
     prv = {b: a for a, b in links}
-    free = []  # (head, tail) of chains of undescribed tracklets linked to nothing outside themselves
+    free = []  # (head, tail) of chains of undescribed tracklets (or a few-view piece) linked to nothing else
     for t in tracklets:
         if t.track_id in prv:
             continue

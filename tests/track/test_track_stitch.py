@@ -216,6 +216,9 @@ def test_a_described_piece_that_matched_no_one_goes_into_the_gap_of_a_re_identif
     noisy_blue = BLUE + np.array([0.0, 0.0, 15.0, 0.0, 0.0, 0.0], np.float32)
     piece = tl(1, 14.0, 16.0, (8.1, 0.0), (8.1, 0.1), v=still, app=noisy_blue, views=4)
     assert stitch_links([a, piece, c]) == [(0, 1), (1, 2)]
+    # seen in more crops than fill_max_views, its colours are no noise: someone else, the piece stays out
+    assert stitch_links([a, replace(piece, n_app=10), c]) == [(0, 2)]
+    assert stitch_links([a, piece, c], config=StitchConfig(fill_max_views=0)) == [(0, 2)]
     # someone in red there is someone else: the piece stays out
     assert stitch_links([a, replace(piece, app=RED, app_start=RED, app_end=RED), c]) == [(0, 2)]
 
