@@ -66,8 +66,8 @@ class Observations:
             out alone, only both legs of ``j`` to two tracks instead of ``j`` to one (two people close
             enough for the laser to pair a leg of each). None: no such rows.
         dt_s: (N,) float64 or None: when each observation was measured, seconds after ``stamp_ns`` (a scan
-            taken before or after the frame, a beam late in a scanner's sweep); the offline smoother takes
-            a person's motion over it into account. None: all at ``stamp_ns``.
+            taken before or after the frame, a beam late in a scanner's sweep); the online association and
+            the offline smoother take a person's motion over it into account. None: all at ``stamp_ns``.
     """
 
     stamp_ns: int

@@ -25,8 +25,9 @@ def mahalanobis_costs(
     """Squared Mahalanobis distances and log-determinants of the innovation covariances.
 
     Args:
-        z_pred: (T, 2) predicted measurements of T tracks, metres.
-        Pz: (T, 2, 2) their covariances without measurement noise, m².
+        z_pred: (T, 2) predicted measurements of T tracks, metres; or (T, N, 2), one per observation (each
+            predicted to the time the observation was measured).
+        Pz: (T, 2, 2) their covariances without measurement noise, m²; or (T, N, 2, 2).
         z: (N, 2) observations, metres.
         R: (N, 2, 2) observation covariances, m².
 
@@ -37,8 +38,10 @@ def mahalanobis_costs(
     T, N = len(z_pred), len(z)
     if T == 0 or N == 0:
         return np.zeros((T, N)), np.zeros((T, N))
-    S = Pz[:, None, :, :] + R[None, :, :, :]  # (T, N, 2, 2)
-    y = z[None, :, :] - z_pred[:, None, :]  # (T, N, 2)
+    if z_pred.ndim == 2:
+        z_pred, Pz = z_pred[:, None, :], Pz[:, None, :, :]
+    S = Pz + R[None, :, :, :]  # (T, N, 2, 2)
+    y = z[None, :, :] - z_pred  # (T, N, 2)
     a, b, c = S[..., 0, 0], 0.5 * (S[..., 0, 1] + S[..., 1, 0]), S[..., 1, 1]
     det = a * c - b * b
     d2 = (c * y[..., 0] ** 2 - 2.0 * b * y[..., 0] * y[..., 1] + a * y[..., 1] ** 2) / det

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -197,3 +199,24 @@ def test_appearance_gate_prevents_swaps_between_close_people(sim):
     n_plain, _ = sim.id_switches(plain, det.owner)
     n_app, _ = sim.id_switches(with_app, det.owner)
     assert n_app < n_plain
+
+
+def test_an_observation_is_compared_with_where_the_track_was_when_it_was_measured():
+    # a walker at 1.5 m/s seen by a sweeping scanner: every other frame's detection was measured 75 ms
+    # after the frame's stamp, the last one 0.3 s after it (a scan far off the camera frame), 0.45 m ahead
+    # of where the walker was at that stamp: taken at its time it is theirs, taken at the stamp it is gated
+    # out and the track coasts
+    def last_det_index(with_times: bool) -> int:
+        tr = UkfTracker()
+        det = -2
+        for k in range(40):
+            t, dt = 0.1 * k, (0.0, 0.075)[k % 2] if k < 39 else 0.3
+            o = obs(t, (1.5 * (t + dt), 0.0), sigma=0.03)
+            if with_times:
+                o = replace(o, dt_s=np.array([dt]))
+            for e in tr.step(o):  # none while tentative
+                det = e.det_index
+        return det
+
+    assert last_det_index(True) == 0
+    assert last_det_index(False) == -1
