@@ -191,7 +191,9 @@ class Run:
 
 def summary(runs: list[Run]) -> list[str]:
     """Lines that sum the runs up: per jitter seed the switches over all recordings (per seed, total, per
-    minute) and mean F1 / MOTA / IDF1; with several jitter seeds, the mean and spread of those totals."""
+    minute), mean F1 / MOTA / IDF1 and how many recordings meet each of issue #3's targets on their own
+    (≤ 1 switch per minute, F1 ≥ 0.95, MOTA ≥ 0.85); with several jitter seeds, the mean and spread of the
+    switch totals."""
     if len(runs) < 2:
         return []
     by_jitter: dict[int, list[Run]] = {}
@@ -205,7 +207,10 @@ def summary(runs: list[Run]) -> list[str]:
         lines.append(
             f"{head}: IDSW {' '.join(str(r.switches) for r in rs)} = {n} ({n / minutes:.2f}/min); "
             f"F1 {np.mean([r.f1 for r in rs]):.4f} MOTA {np.mean([r.mota for r in rs]):.4f} "
-            f"IDF1 {np.mean([r.idf1 for r in rs]):.4f}"
+            f"IDF1 {np.mean([r.idf1 for r in rs]):.4f}; targets met by "
+            f"{sum(r.switches <= r.minutes for r in rs)}/{len(rs)} (≤ 1 switch/min), "
+            f"{sum(r.f1 >= 0.95 for r in rs)}/{len(rs)} (F1 ≥ 0.95), "
+            f"{sum(r.mota >= 0.85 for r in rs)}/{len(rs)} (MOTA ≥ 0.85)"
         )
     if len(totals) > 1:
         t = np.array(totals, dtype=np.float64)

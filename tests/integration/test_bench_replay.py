@@ -181,5 +181,13 @@ def test_summary_totals_each_jitter_seed_and_their_spread() -> None:
     assert lines[1].startswith("jitter seed 2: IDSW 6 2 = 8 (2.67/min)")
     assert lines[2] == "over 2 jitter seeds: IDSW mean 6.0 sd 2.8 (min 4, max 8)"
     # one jitter seed: the total only; one run: nothing to sum up
-    assert bench.summary(runs[:2]) == ["all: IDSW 3 1 = 4 (1.33/min); F1 0.8500 MOTA 0.8000 IDF1 0.7000"]
+    assert bench.summary(runs[:2]) == [
+        "all: IDSW 3 1 = 4 (1.33/min); F1 0.8500 MOTA 0.8000 IDF1 0.7000; "
+        "targets met by 1/2 (≤ 1 switch/min), 0/2 (F1 ≥ 0.95), 0/2 (MOTA ≥ 0.85)"
+    ]
+    # each recording on its own: 2 switches in 2 minutes meet the rate, 3 do not; F1 and MOTA at the line do
+    edge = [Run(0, 1, 2, 0.95, 0.85, 0.9, 2.0), Run(0, 2, 3, 0.9, 0.9, 0.9, 2.0)]
+    assert bench.summary(edge)[0].endswith(
+        "targets met by 1/2 (≤ 1 switch/min), 1/2 (F1 ≥ 0.95), 2/2 (MOTA ≥ 0.85)"
+    )
     assert bench.summary(runs[:1]) == []
