@@ -6,10 +6,12 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from pathlib import Path
 
-__all__ = ["atomic_dir", "atomic_write_bytes", "atomic_write_text"]
+from studio.errors import StudioError
+
+__all__ = ["atomic_dir", "atomic_write_bytes", "atomic_write_text", "check_replaceable"]
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, fsync: bool = True) -> None:
@@ -39,17 +41,27 @@ def atomic_write_text(path: str | os.PathLike[str], text: str, *, fsync: bool = 
 
 
 @contextlib.contextmanager
-def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
+def atomic_dir(
+    path: str | os.PathLike[str], *, outputs: Collection[str] = (), what: str = ""
+) -> Iterator[Path]:
     """Build a directory's files in a sibling temporary directory; on success it replaces ``path``.
 
-    On any error the temporary directory is removed and ``path`` is left as it was.
+    On any error the temporary directory is removed and ``path`` is left as it was. An existing ``path`` is
+    replaced only when it is an empty directory or an earlier output of the same command: a directory
+    holding ``outputs[0]`` and nothing but names in ``outputs`` (the files and folders the command writes).
+    Anything else — a file, a folder of the user's data, an earlier run someone added annotations to —
+    raises :class:`~studio.errors.StudioError` before the work starts, and again before the replacement
+    if it changed meanwhile, so a mistyped ``--out`` never deletes anything. ``what`` names the output in
+    that message (e.g. ``"a studio label run"``).
     """
     target = Path(path)
+    check_replaceable(target, outputs, what)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
     os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp
+        check_replaceable(target, outputs, what)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -61,6 +73,31 @@ def atomic_dir(path: str | os.PathLike[str]) -> Iterator[Path]:
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(tmp, target)
+
+
+def check_replaceable(target: str | os.PathLike[str], outputs: Collection[str], what: str = "") -> None:
+    """Raise :class:`~studio.errors.StudioError` unless :func:`atomic_dir` may replace ``target`` (see there);
+    a command calls it first, to refuse before reading its inputs."""
+    target = Path(target)
+    if not target.exists() and not target.is_symlink():
+        return
+    if not target.is_dir() or target.is_symlink():
+        raise StudioError(f"{target} exists and is not a directory: give the output a new or empty directory")
+    names = sorted(p.name for p in target.iterdir())
+    if not names:
+        return
+    known = list(outputs)
+    foreign = [n for n in names if n not in known]
+    if known and known[0] in names and not foreign:
+        return
+    hint = (
+        "give the output a new or empty directory (an earlier output is replaced only when nothing was added)"
+    )
+    if "annotations" in foreign:
+        raise StudioError(f"{target} holds annotations (annotations/), which are never overwritten: {hint}")
+    shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+    earlier = f"an earlier {what}" if what else "an earlier output of this command"
+    raise StudioError(f"{target} is not {earlier} (it holds {shown}): {hint}")
 
 
 def _umask() -> int:

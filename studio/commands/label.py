@@ -7,10 +7,27 @@ import time
 from pathlib import Path
 from typing import Any
 
-from studio.atomic import atomic_dir
+from studio.atomic import atomic_dir, check_replaceable
 from studio.errors import StudioError
 
-__all__ = ["run", "run_label"]
+__all__ = ["RUN_OUTPUTS", "run", "run_label"]
+
+# What a run directory holds (``run.json`` first: it marks an earlier run, which a new one replaces);
+# ``metrics.json`` is ``studio demo``'s. A directory holding anything else (annotations, the user's files)
+# is never replaced.
+RUN_OUTPUTS = (
+    "run.json",
+    "labels.yaml",
+    "labels.jsonl",
+    "detections.yaml",
+    "tracks_mot.csv",
+    "boxes_coco.json",
+    "image_detections.jsonl",
+    "recording.rrd",
+    "frames",
+    "DATASET.md",
+    "metrics.json",
+)
 
 
 def run_label(
@@ -23,7 +40,8 @@ def run_label(
     ground_truth: Path | None = None,
     quiet: bool = False,
 ) -> dict[str, Any]:
-    """Label ``recording`` into the run directory ``out`` (written atomically). Returns run.json's content."""
+    """Label ``recording`` into the run directory ``out`` (written atomically; an earlier run there is
+    replaced, a directory holding anything else is refused). Returns run.json's content."""
     from tqdm import tqdm
 
     from studio.io import load_rig
@@ -32,6 +50,7 @@ def run_label(
 
     if not recording.exists():
         raise StudioError(f"{recording}: no such recording")
+    check_replaceable(out, RUN_OUTPUTS, "studio label run")
     rig = load_rig(rig_path)
     bars: list[Any] = []
 
@@ -54,7 +73,7 @@ def run_label(
 
     hooks: list[Any] = []
     t0 = time.perf_counter()
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, outputs=RUN_OUTPUTS, what="studio label run") as tmp:
         exporter = None
         if options.export_frames:
             from studio.pipeline.export import FrameExporter

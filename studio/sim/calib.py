@@ -318,7 +318,7 @@ def simulate_calib(
     lines: list[str] = []
     n_img = n_scan = n_odom = n_gt = 0
     try:
-        with atomic_dir(out) as tmp:
+        with atomic_dir(out, outputs=CALIB_OUTPUT_FILES, what="simulated calibration recording") as tmp:
             bag = tmp / "recording.mcap"
             with RecordingWriter(bag) as wr:
                 wr.write_tf(

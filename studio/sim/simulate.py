@@ -204,7 +204,7 @@ def simulate(
     pool = ThreadPoolExecutor(max_workers=_RENDER_THREADS, thread_name_prefix="studio-sim-render")
     pending: dict[int, Future[tuple[LabelFrame, bytes]]] = {k: render(k) for k in range(min(_AHEAD, n_cam))}
     try:
-        with atomic_dir(out) as tmp:
+        with atomic_dir(out, outputs=OUTPUT_FILES, what="simulated recording") as tmp:
             bag = tmp / "recording.mcap"
             with RecordingWriter(bag) as wr:
                 wr.write_tf(

@@ -92,6 +92,33 @@ def test_bad_rig_is_one_clear_error(shared_data: Path, tmp_path: Path, rig_text:
     assert not (tmp_path / "run").exists()
 
 
+def test_out_replaces_an_earlier_run_but_nothing_else(shared_data: Path, tmp_path: Path) -> None:
+    """``--out`` on an earlier run replaces it; on a folder of the user's files, or on a run with
+    annotations, ``studio label`` refuses with one line before reading the bag, and deletes nothing."""
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: right_laser\nlasers:\n  - topic: right_scan\n")
+    bag = shared_data / "positive" / "positive_1.bag"
+    run = tmp_path / "run"
+    for _ in range(2):  # the second run replaces the first
+        res = _studio("label", str(bag), "--rig", str(rig), "--out", str(run), "--no-rrd")
+        assert res.returncode == 0, res.stderr
+    assert (run / "labels.jsonl").is_file()
+    (run / "annotations").mkdir()
+    (run / "annotations" / "corrections.jsonl").write_text("{}\n")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    shutil.copy(bag, mine / "positive_1.bag")
+    for out, message in ((run, "annotations"), (mine, "positive_1.bag")):
+        before = sorted(p.name for p in out.iterdir())
+        res = _studio("label", str(bag), "--rig", str(rig), "--out", str(out), "--no-rrd")
+        assert res.returncode == 2, res.stderr
+        assert message in res.stderr
+        assert res.stderr.count("\n") == 1
+        assert sorted(p.name for p in out.iterdir()) == before
+    assert (run / "annotations" / "corrections.jsonl").read_text() == "{}\n"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
 def test_scan_matching_keeps_a_standing_robot_still_among_walking_people(
     shared_data: Path, tmp_path: Path
 ) -> None:

@@ -8,6 +8,7 @@ import stat
 import pytest
 
 from studio.atomic import atomic_dir, atomic_write_text
+from studio.errors import StudioError
 
 
 def test_file_mode_follows_umask(tmp_path) -> None:
@@ -22,11 +23,11 @@ def test_file_mode_follows_umask(tmp_path) -> None:
 
 def test_atomic_dir_keeps_old_content_on_failure(tmp_path) -> None:
     out = tmp_path / "run"
-    with atomic_dir(out) as d:
+    with atomic_dir(out, outputs=("labels.yaml",)) as d:
         (d / "labels.yaml").write_text("old")
 
     def half_written() -> None:
-        with atomic_dir(out) as d:
+        with atomic_dir(out, outputs=("labels.yaml",)) as d:
             (d / "labels.yaml").write_text("half")
             raise RuntimeError("boom")
 
@@ -34,6 +35,47 @@ def test_atomic_dir_keeps_old_content_on_failure(tmp_path) -> None:
         half_written()
     assert (out / "labels.yaml").read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
-    with atomic_dir(out) as d:
+    with atomic_dir(out, outputs=("labels.yaml",)) as d:
         (d / "labels.yaml").write_text("new")
     assert (out / "labels.yaml").read_text() == "new"
+
+
+def test_atomic_dir_replaces_only_an_earlier_output(tmp_path) -> None:
+    """A directory of the user's files, or an earlier output someone added to (annotations), is never
+    replaced: one clear error, before and after the work, and everything stays as it was."""
+    outputs = ("run.json", "labels.yaml")
+    out = tmp_path / "run"
+    with atomic_dir(out, outputs=outputs) as d:
+        (d / "run.json").write_text("{}")
+    with atomic_dir(out, outputs=outputs) as d:  # an earlier output: replaced
+        (d / "run.json").write_text('{"again": 1}')
+        (d / "labels.yaml").write_text("x")
+    assert (out / "labels.yaml").is_file()
+    (out / "annotations").mkdir()
+    (out / "annotations" / "corrections.jsonl").write_text("keep")
+    with pytest.raises(StudioError, match="annotations"), atomic_dir(out, outputs=outputs):
+        pytest.fail("must not start")
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "my.bag").write_text("bag")
+    with pytest.raises(StudioError, match=r"my\.bag"), atomic_dir(data, outputs=outputs):
+        pytest.fail("must not start")
+    (tmp_path / "file").write_text("f")
+    with pytest.raises(StudioError, match="not a directory"), atomic_dir(tmp_path / "file", outputs=outputs):
+        pytest.fail("must not start")
+    # annotations made while the run was being built: the new run is thrown away, the old one kept
+    out2 = tmp_path / "run2"
+    with atomic_dir(out2, outputs=outputs) as d:
+        (d / "run.json").write_text("old")
+
+    def annotated_meanwhile() -> None:
+        with atomic_dir(out2, outputs=outputs) as d:
+            (d / "run.json").write_text("new")
+            (out2 / "annotations").mkdir()
+
+    with pytest.raises(StudioError, match="annotations"):
+        annotated_meanwhile()
+    assert (out2 / "run.json").read_text() == "old"
+    assert (out / "annotations" / "corrections.jsonl").read_text() == "keep"
+    assert (data / "my.bag").read_text() == "bag"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
