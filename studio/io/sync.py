@@ -42,6 +42,8 @@ __all__ = ["LaserSyncStats", "SyncReport", "count_frames", "iter_frames", "resol
 DROP_NO_ODOMETRY = "no odometry at the frame stamp"
 DROP_BAD_IMAGE = "undecodable image"
 DROP_BAD_SCAN = "undecodable scan"
+DROP_NOT_AFTER = "a duplicate or out-of-order stamp"
+_UPRIGHT_MIN_COS = 0.5  # the base frame's z axis within 60° of the odometry frame's
 
 _IMAGE_TYPES = ("CompressedImage", "Image", "RawImage")
 _SCAN_TYPES = ("LaserScan",)
@@ -71,6 +73,9 @@ class SyncReport:
         uncompensated_scans: scans attached without motion compensation (no odometry at the scan stamp).
         skipped_scans: reason → scans left out of frames (undecodable, no TF for the laser …).
         warnings: set-up warnings (no odometry, odometry frame mismatch …).
+        anchor_span_ns: first and last stamp of the frames seen (None: none).
+        odometry_span_ns: first and last stamp of the odometry topic's messages (None: none, or odometry
+            from TF).
     """
 
     anchor: str = ""
@@ -81,6 +86,8 @@ class SyncReport:
     uncompensated_scans: int = 0
     skipped_scans: Counter[str] = field(default_factory=Counter)
     warnings: list[str] = field(default_factory=list)
+    anchor_span_ns: tuple[int, int] | None = None
+    odometry_span_ns: tuple[int, int] | None = None
 
     def warn(self, text: str) -> None:
         if text not in self.warnings:
@@ -106,6 +113,27 @@ class SyncReport:
             "skipped_scans": dict(self.skipped_scans),
             "warnings": list(self.warnings),
         }
+
+    def dropped_note(self) -> str | None:
+        """One line on the frames dropped, or None when none was."""
+        n_drop = sum(self.dropped.values())
+        if not n_drop:
+            return None
+        why = ", ".join(f"{r}: {n}" for r, n in self.dropped.most_common())
+        return f"{n_drop} of {self.candidates} frames dropped ({why})"
+
+    def why_empty(self) -> str:
+        """One line on why no frame was yielded."""
+        if self.candidates == 0:
+            return f"there are no {self.anchor} in the recording"
+        odo, fr = self.odometry_span_ns, self.anchor_span_ns
+        if self.dropped[DROP_NO_ODOMETRY] == self.candidates and odo is not None and fr is not None:
+            return (
+                f"no odometry at any frame stamp: the odometry's stamps span {odo[0] * 1e-9:.3f}–"
+                f"{odo[1] * 1e-9:.3f} s, the frames' {fr[0] * 1e-9:.3f}–{fr[1] * 1e-9:.3f} s "
+                "(are they stamped by different clocks?)"
+            )
+        return "; ".join(self.summary().splitlines())
 
     def summary(self) -> str:
         """Readable multi-line summary."""
@@ -217,6 +245,8 @@ class _Motion:
                 report.warn(f"{bad} odometry messages on {topic} could not be decoded")
             if not stamps:
                 report.warn(f"odometry topic {topic} has no usable messages")
+            else:
+                report.odometry_span_ns = (min(stamps), max(stamps))
             self.track = _OdomTrack(stamps, vals, tol)
             child = next(iter(children)) if len(children) == 1 else ""
             if child and child != self.base:
@@ -420,6 +450,14 @@ def iter_frames(
         if T_f is None:
             rep.dropped[DROP_NO_ODOMETRY] += 1
             return None
+        if T_f.R[2, 2] < _UPRIGHT_MIN_COS:
+            # a 2-D pose of a frame upside down in the odometry frame is a mirror image, not a motion
+            tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(T_f.R[2, 2])))))
+            raise TfError(
+                f"base_frame '{rig.base_frame}' is tilted {tilt:.0f}° from upright in the odometry frame "
+                "(mounted upside down?): positions in it would be mirrored; name an upright frame of the "
+                "robot (e.g. base_link) as base_frame"
+            )
         pano = None
         if p.image_msg is not None:
             try:
@@ -524,7 +562,12 @@ def iter_frames(
                 rep.candidates += 1
                 new = _Pending(scan.stamp_ns, raw.log_ns, None, [None] * len(laser_topics))
                 new.best[k] = (0, scan)
+        if new is not None and last_anchor is not None and new.stamp <= last_anchor:
+            rep.dropped[DROP_NOT_AFTER] += 1  # a frame needs a stamp after the one before it
+            new = None
         if new is not None:
+            span = rep.anchor_span_ns
+            rep.anchor_span_ns = (new.stamp if span is None else span[0], new.stamp)
             for k2, buf in enumerate(buffers):
                 if k2 != anchor_laser:
                     for s in buf:

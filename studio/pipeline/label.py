@@ -566,7 +566,14 @@ def label_recording(
     frames, info = perceive(Path(recording), rig, opts, progress=progress, on_frame=hook)
     notes: list[str] = []
     if not frames:
-        raise StudioError(f"{recording}: no frame could be built ({info['sync']})")
+        raise StudioError(f"{recording}: no frame could be built: {info['sync_report'].why_empty()}")
+    dropped = info["sync_report"].dropped_note()
+    if dropped:
+        notes.append(dropped)
+    if info["use_laser"] and not any(np.isfinite(f.points[:, 0]).any() for f in frames):
+        notes.append(
+            "no scan has a valid range (all NaN, inf or outside range_min–range_max): the lasers found nobody"
+        )
     camera = None
     rig = info["rig"]
     if "size" in sizes and rig.camera is not None:

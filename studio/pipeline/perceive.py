@@ -538,6 +538,7 @@ def perceive(
         if matcher is None
         else {"matched": matcher.matched, "rejected": matcher.rejected, "skipped": matcher.skipped},
         "sync": report.summary(),
+        "sync_report": report,
         "image_looks": None if quiet is None else {"whole": quiet.whole, "partial": quiet.partial},
         "views_run": getattr(image_detector, "views_run", None),
         "view_columns_run": getattr(image_detector, "view_columns_run", None),

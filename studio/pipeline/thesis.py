@@ -199,7 +199,7 @@ def label_thesis(
                 progress(len(fused), total)
             tick = time.perf_counter()
     if not fused:
-        raise StudioError(f"{recording}: no frame could be built ({report.summary()})")
+        raise StudioError(f"{recording}: no frame could be built: {report.why_empty()}")
     t4 = time.perf_counter()
     tracker = ThesisTracker()
     labels = []

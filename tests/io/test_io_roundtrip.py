@@ -193,6 +193,70 @@ def test_no_odometry_at_frame_stamp_is_dropped(tmp_path: Path) -> None:
     assert any("child frame 'base_link'" in w for w in report.warnings)
 
 
+def test_duplicate_and_out_of_order_frames_are_dropped(tmp_path: Path) -> None:
+    """Each scan written twice (a topic recorded twice, merged bags) and one logged late with an earlier
+    stamp: every frame stamp comes once and in order (the tracker needs increasing stamps), the rest is
+    counted, and a label run says so."""
+    p = tmp_path / "dup.mcap"
+    stamps = [T0 + k * 100_000_000 for k in range(20)]
+    stamps[10], stamps[11] = stamps[11], stamps[10]  # logged in swapped order
+    with RecordingWriter(p) as w:
+        for k, stamp in enumerate(stamps):
+            for j in range(2):
+                w.write_scan("/scan", make_scan(stamp, "laser"), log_ns=T0 + k * 100_000_000 + j * 1000)
+    rig = parse_rig({"base_frame": "laser", "lasers": [{"topic": "/scan"}]})
+    report = SyncReport()
+    with open_recording(p) as rec:
+        frames = list(iter_frames(rec, rig, report=report))
+    got = [f.stamp_ns for f in frames]
+    assert got == sorted(set(got))
+    assert len(got) == 19  # the late one of the swapped pair is dropped
+    assert report.dropped["a duplicate or out-of-order stamp"] == 21
+    assert report.dropped_note() == "21 of 40 frames dropped (a duplicate or out-of-order stamp: 21)"
+
+
+def test_why_no_frame_is_one_line_naming_the_cause(tmp_path: Path) -> None:
+    """Odometry stamped by another clock (1000 s off) and a recording without the anchor's messages: the
+    reason, on one line."""
+    p = tmp_path / "clock.mcap"
+    with RecordingWriter(p) as w:
+        for k in range(20):
+            stamp = T0 + k * 100_000_000
+            w.write_odometry("/odom", Odometry(stamp - 1000 * 10**9, "odom", "laser", Pose2(0.0, 0.0, 0.0)))
+            w.write_scan("/scan", make_scan(stamp, "laser"))
+    rig = parse_rig({"base_frame": "laser", "odometry": {"topic": "/odom"}, "lasers": [{"topic": "/scan"}]})
+    report = SyncReport()
+    with open_recording(p) as rec:
+        assert list(iter_frames(rec, rig, report=report)) == []
+    why = report.why_empty()
+    assert "\n" not in why
+    assert why.startswith("no odometry at any frame stamp: the odometry's stamps span 1699999000.000")
+    assert "different clocks" in why
+    empty = SyncReport(anchor="scans of /scan")
+    assert empty.why_empty() == "there are no scans of /scan in the recording"
+
+
+def test_upside_down_base_frame_is_refused(tmp_path: Path) -> None:
+    """A base frame upside down in the odometry frame (a scanner mounted upside down named as base_frame):
+    its 2-D pose would mirror every odom position, so it is one clear error."""
+    p = tmp_path / "ud.mcap"
+    flipped = Pose3.from_xyz_rpy(0.3, 0.0, 0.4, np.pi, 0.0, 0.0)
+    with RecordingWriter(p) as w:
+        w.write_tf([("base_link", "laser", T0, flipped)], static=True, log_ns=T0)
+        for k in range(10):
+            stamp = T0 + k * 100_000_000
+            w.write_odometry("/odom", Odometry(stamp, "odom", "base_link", Pose2(0.1 * k, 0.0, 0.0)))
+            w.write_scan("/scan", make_scan(stamp, "laser"))
+    for base in ("laser", "base_link"):
+        rig = parse_rig({"base_frame": base, "odometry": {"topic": "/odom"}, "lasers": [{"topic": "/scan"}]})
+        with open_recording(p) as rec:
+            if base == "laser":
+                with pytest.raises(TfError, match="base_frame 'laser' is tilted 180° from upright"):
+                    list(iter_frames(rec, rig))
+            else:
+                assert len(list(iter_frames(rec, rig))) == 10
+
+
 def test_undecodable_image_is_dropped(tmp_path: Path) -> None:
     p = tmp_path / "badimg.mcap"
     _ok, jpg = cv2.imencode(".jpg", np.zeros((8, 16, 3), np.uint8))
