@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.detect.laser.base import KIND_PAIR, LaserDetections
+from studio.detect.laser.base import KIND_BLOB, KIND_PAIR, LaserDetections
 from studio.errors import StudioError
 from studio.fuse.base import PersonObservations, ScanRays
 from studio.fuse.fusion import colours_hidden, fuse_frame
@@ -48,6 +48,9 @@ _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static
 _CAMERA_SEEN_M = 0.3  # a camera observation no track took vouches for a track this near (camera gate)
 _WALK_GAP_S, _WALK_MEDIAN = 0.5, 5  # a stretch of a track (min_walk_m) ends at a gap this long, s; smoothing
 _CAMERA_TAIL_BACK_S = 1.0  # with a camera, stitching's take-over looks back this far (see tracking_config)
+# leg pairs on spots seen empty (_pairs_on_empty): the classical detector's leg threshold there, and the
+# distance (m) within which a detection it already made covers them
+_EMPTY_LEG_SCORE, _EMPTY_COVERED_M = 0.1, 0.3
 _PAIR_ON_STRUCTURE, _PAIR_SPREAD = 0.2, 0.35  # a leg pair with this share of its points on structure, ...
 # ... that far (m) from its other points, paired a leg with a chair leg or a corner
 
@@ -121,8 +124,12 @@ def fuse_all(
 ) -> list[FrameResult]:
     """Static filter + fusion of every frame (base frame); the maps as :func:`_static_masks`."""
     # camera-only runs use neither laser detections nor scan points: no map to build
+    smap = None
     if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
-        det_static, pt_static = _static_masks(frames, static_map, body_maps)
+        from studio.detect.laser.static_map import StaticMap
+
+        smap = static_map or StaticMap.build(s for f in frames for s in odom_scans(f))
+        det_static, pt_static = _static_masks(frames, smap, body_maps)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
         pt_static = [np.zeros(len(f.points), bool) for f in frames]
@@ -135,6 +142,13 @@ def fuse_all(
     vouch_ns: list[int] = []
     vouch_xy: list[FloatArray] = []
     detector = None
+    # without the camera, the classical detector with the lower leg threshold of spots seen empty
+    on_empty = None
+    laser_only = camera is None or options.sources == "laser"
+    if laser_only and smap is not None and (options.laser_detector or "classical") == "classical":
+        from studio.detect.laser import get_laser_detector
+
+        on_empty = get_laser_detector("classical", leg_min_score=_EMPTY_LEG_SCORE)
     for i in sorted(range(len(frames)), key=lambda k: frames[k].image is None):
         f, ds, ps = frames[i], det_static[i], pt_static[i]
         laser = f.laser
@@ -163,6 +177,8 @@ def fuse_all(
                     if segs is not None
                     else np.zeros(len(laser.xy), bool)
                 )
+        if on_empty is not None and smap is not None and laser is not None and laser.segments is not None:
+            laser, laser_z, ds = _pairs_on_empty(f, laser, laser_z, ds, smap, on_empty)
         if laser is not None and ds.any() and f.image is None:
             keep = ~ds | _vouched(f, laser.xy, vouch_ns, vouch_xy)
             laser = laser.select(np.flatnonzero(keep))
@@ -223,6 +239,42 @@ def _measured_at(obs: PersonObservations, f: PerceptionFrame) -> FloatArray | No
         if near.any():
             out[k] = float(dt[near].mean())
     return out
+
+
+def _pairs_on_empty(
+    f: PerceptionFrame,
+    laser: LaserDetections,
+    laser_z: FloatArray,
+    static: NDArray[np.bool_],
+    smap: Any,
+    detector: Any,
+) -> tuple[LaserDetections, FloatArray, NDArray[np.bool_]]:
+    """The frame's detections, plus the people ``detector`` finds among the returns that no detection holds
+    and that lie on spots the robot saw empty at other times (:meth:`StaticMap.seen_empty`).
+
+    The leg model scores a leg low when something stands less than a metre behind it (its ``occlusion``
+    features: chair and table legs stand by walls), so someone standing by a wall or a cupboard goes
+    unseen, though the same spot was empty before they came or after they left. Structure is never seen
+    empty: those returns go to ``detector`` alone, without the structure behind them, and its leg pairs
+    and blobs (two legs side by side merge into one) are taken; single legs are not, as a lone return on a
+    spot seen empty is as often something moving with the robot or a stray beam. A robot that never moves
+    never sees a spot empty: nothing changes there.
+    """
+    free = smap.seen_empty(f.world_pose.apply(f.points[:, :2].astype(np.float64)))
+    if laser.segments is not None:
+        for g in laser.segments:
+            free[g] = False
+    if np.count_nonzero(free) < 2 * detector.segment.min_points:
+        return laser, laser_z, static
+    extra, z = detect_again(f, detector, ~free)
+    new = (extra.kind == KIND_PAIR) | (extra.kind == KIND_BLOB)
+    if len(laser) and len(extra):
+        gap = np.hypot(*(extra.xy[:, None, :] - laser.xy[None, :, :]).transpose(2, 0, 1))
+        new &= gap.min(axis=1) > _EMPTY_COVERED_M
+    if not new.any():
+        return laser, laser_z, static
+    added = np.zeros(int(new.sum()), bool)
+    return laser.then(extra.select(new)), np.r_[laser_z, z[new]], np.r_[static, added]
 
 
 def _pair_legs(obs: PersonObservations, laser: LaserDetections | None) -> FloatArray | None:

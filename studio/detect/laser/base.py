@@ -119,6 +119,23 @@ class LaserDetections:
         legs = None if self.legs is None else self.legs[idx]
         return LaserDetections(self.xy[idx], self.scores[idx], self.kind[idx], self.radius[idx], segs, legs)
 
+    def then(self, other: LaserDetections) -> LaserDetections:
+        """These detections followed by ``other``'s (no merging; ``segments`` index the same points, and
+        are kept when both have them; a side without ``legs`` gets NaN rows)."""
+        segs = None if self.segments is None or other.segments is None else self.segments + other.segments
+        legs = None
+        if self.legs is not None or other.legs is not None:
+            nan = lambda d: np.full((len(d), 2, 2), np.nan) if d.legs is None else d.legs  # noqa: E731
+            legs = np.concatenate([nan(self), nan(other)])
+        return LaserDetections(
+            np.concatenate([self.xy, other.xy]),
+            np.concatenate([self.scores, other.scores]),
+            np.concatenate([self.kind, other.kind]),
+            np.concatenate([self.radius, other.radius]),
+            segs,
+            legs,
+        )
+
     def above(self, threshold: float) -> LaserDetections:
         """The detections whose score is at least ``threshold``."""
         return self.select(self.scores >= threshold)

@@ -176,6 +176,11 @@ class StaticMap:
         h, f, empty = self._lookup(points)
         return (_fraction(h, f, min_observations) >= occupied) & ~empty
 
+    def seen_empty(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """``(K,)`` whether each point's cell was once seen empty (see the module docstring): nothing
+        there stood still for the whole recording. NaN points and points off the map give False."""
+        return self._lookup(points)[2]
+
     def hit_fraction(self, points: ArrayLike) -> FloatArray:
         """``(K,)`` share of all the map's scans that hit each point's cell (0 for NaN points).
 

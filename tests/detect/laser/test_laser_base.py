@@ -31,6 +31,24 @@ def test_empty_and_shapes():
     assert LaserDetections.empty(with_segments=True).segments == ()
 
 
+def test_then_concatenates_and_fills_missing_legs_with_nan():
+    a = _dets([[1.0, 0.0]], [0.9], (np.array([0, 1]),))
+    a = LaserDetections(a.xy, a.scores, a.kind, a.radius, a.segments, np.ones((1, 2, 2)))
+    b = _dets([[2.0, 0.0], [3.0, 0.0]], [0.2, 0.3], (np.array([5]), np.array([6, 7])))
+    both = a.then(b)
+    assert len(both) == 3
+    np.testing.assert_array_equal(both.xy[:, 0], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(both.scores, [0.9, 0.2, 0.3])
+    assert both.segments is not None
+    assert [g.tolist() for g in both.segments] == [[0, 1], [5], [6, 7]]
+    assert both.legs is not None
+    assert both.legs.shape == (3, 2, 2)
+    assert (both.legs[0] == 1).all()
+    assert np.isnan(both.legs[1:]).all()
+    assert a.then(_dets([[4.0, 0.0]], [0.5])).segments is None  # one side without segments: none
+    assert LaserDetections.empty().then(LaserDetections.empty()).legs is None
+
+
 @pytest.mark.parametrize(
     ("kwargs", "msg"),
     [
