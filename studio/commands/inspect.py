@@ -213,9 +213,10 @@ def _report(args: argparse.Namespace) -> None:
 
 
 def _pose_lines(rec: Recording, rig: Any) -> list[str]:
-    """Where ``studio label`` puts each sensor: its pose, from the rig or the recording's TF (or looked up
-    scan by scan where the mount moves), and a scanner mounted upside down."""
-    from studio.io import resolve_sensor_poses
+    """Where ``studio label`` puts each sensor: its pose, from the rig or the recording's TF (a laser looked
+    up scan by scan where its mount moves), why a sensor cannot be placed, and a scanner mounted upside
+    down."""
+    from studio.io import resolve_sensor_poses, unplaced_reason
     from studio.io.base import upside_down
 
     placed = resolve_sensor_poses(rec, rig)
@@ -228,7 +229,11 @@ def _pose_lines(rec: Recording, rig: Any) -> list[str]:
     for kind, given, pose_of in sensors:
         pose = pose_of.pose
         if pose is None:
-            lines.append(f"{kind} {given.topic}: from TF scan by scan (no static transform to the base)")
+            moving, why = unplaced_reason(rec, rig, given.topic)
+            if moving and kind == "laser":
+                lines.append(f"{kind} {given.topic}: from TF scan by scan ({why})")
+            else:
+                lines.append(f"{kind} {given.topic}: cannot be placed: {why} (give its pose in rig.yaml)")
             continue
         x, y, z = np.round(pose.t, 3) + 0.0  # no "-0.000"
         r, p, w = np.round(np.degrees(pose.rpy()), 1) + 0.0

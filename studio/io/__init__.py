@@ -26,7 +26,14 @@ from studio.io.rig import (
     parse_rig,
     save_rig,
 )
-from studio.io.sync import LaserSyncStats, SyncReport, count_frames, iter_frames, resolve_sensor_poses
+from studio.io.sync import (
+    LaserSyncStats,
+    SyncReport,
+    count_frames,
+    iter_frames,
+    resolve_sensor_poses,
+    unplaced_reason,
+)
 from studio.io.tf import TfBuffer, TfEdge
 from studio.io.writer import RecordingWriter
 
@@ -63,4 +70,5 @@ __all__ = [
     "parse_rig",
     "resolve_sensor_poses",
     "save_rig",
+    "unplaced_reason",
 ]

@@ -37,7 +37,14 @@ from studio.io.reader import Recording
 from studio.io.rig import Rig
 from studio.io.tf import TfBuffer, tf_topics
 
-__all__ = ["LaserSyncStats", "SyncReport", "count_frames", "iter_frames", "resolve_sensor_poses"]
+__all__ = [
+    "LaserSyncStats",
+    "SyncReport",
+    "count_frames",
+    "iter_frames",
+    "resolve_sensor_poses",
+    "unplaced_reason",
+]
 
 DROP_NO_ODOMETRY = "no odometry at the frame stamp"
 DROP_BAD_IMAGE = "undecodable image"
@@ -315,11 +322,26 @@ def _first_frame_id(rec: Recording, topic: str) -> str | None:
     return None
 
 
+def _first_frame(rec: Recording, topic: str) -> tuple[str, int] | None:
+    """The ``frame_id`` (normalised) and stamp of a topic's first message; None when it has none or does
+    not decode."""
+    raw = next(iter(rec.messages([rec.resolve_topic(topic)])), None) if rec.has_topic(topic) else None
+    if raw is None:
+        return None
+    try:
+        msg = rec.decode(raw)
+    except RecordingError:
+        return None
+    header = getattr(msg, "header", None)
+    return norm_frame(getattr(header, "frame_id", getattr(msg, "frame_id", ""))), stamp_ns_of(msg, raw.log_ns)
+
+
 def resolve_sensor_poses(rec: Recording, rig: Rig, *, tf: TfBuffer | None = None) -> Rig:
     """A copy of ``rig`` where each sensor without a pose gets its static T_base_sensor from the TF tree.
 
     The sensor's frame is the ``frame_id`` of its first message. A sensor that TF cannot place (or only
-    through moving edges) keeps ``pose=None``; iter_frames then looks laser poses up per scan.
+    through moving edges) keeps ``pose=None`` (:func:`unplaced_reason` says why); iter_frames then looks
+    laser poses up per scan.
     """
     if rig.camera is not None and rig.camera.pose is not None and all(x.pose is not None for x in rig.lasers):
         return rig
@@ -327,22 +349,17 @@ def resolve_sensor_poses(rec: Recording, rig: Rig, *, tf: TfBuffer | None = None
         tf = TfBuffer.from_recording(rec) if tf_topics(rec) else TfBuffer()
 
     def static_pose(topic: str) -> Pose3 | None:
-        raw = next(iter(rec.messages([rec.resolve_topic(topic)])), None)
-        if raw is None:
+        first = _first_frame(rec, topic)
+        if first is None:
             return None
-        try:
-            msg = rec.decode(raw)
-        except RecordingError:
-            return None
-        header = getattr(msg, "header", None)
-        frame = norm_frame(getattr(header, "frame_id", getattr(msg, "frame_id", "")))
+        frame, stamp = first
         if (
             not frame
             or not tf.can_transform(rig.base_frame, frame)
             or not tf.is_static_path(rig.base_frame, frame)
         ):
             return None
-        return tf.lookup(rig.base_frame, frame, stamp_ns_of(msg, raw.log_ns))
+        return tf.lookup(rig.base_frame, frame, stamp)
 
     camera = rig.camera
     if camera is not None and camera.pose is None:
@@ -351,6 +368,28 @@ def resolve_sensor_poses(rec: Recording, rig: Rig, *, tf: TfBuffer | None = None
         x if x.pose is not None else dataclasses.replace(x, pose=static_pose(x.topic)) for x in rig.lasers
     )
     return dataclasses.replace(rig, camera=camera, lasers=lasers)
+
+
+def unplaced_reason(rec: Recording, rig: Rig, topic: str, *, tf: TfBuffer | None = None) -> tuple[bool, str]:
+    """Why :func:`resolve_sensor_poses` left the sensor of ``topic`` without a pose: ``(moving, text)``,
+    ``moving`` True when TF places it only through edges that move (a laser is then looked up scan by
+    scan; a camera cannot be), ``text`` a clause for a message."""
+    if tf is None:
+        tf = TfBuffer.from_recording(rec) if tf_topics(rec) else TfBuffer()
+    first = _first_frame(rec, topic)
+    if first is None:
+        return False, f"{topic} has no message that decodes, to read its frame_id from"
+    frame = first[0]
+    if not frame:
+        return False, f"the messages of {topic} have no frame_id"
+    if not tf_topics(rec):
+        return False, f"its frame '{frame}' is not '{rig.base_frame}' and the recording has no TF"
+    if not tf.can_transform(rig.base_frame, frame):
+        return (
+            False,
+            f"its frame '{frame}' is not connected to base_frame '{rig.base_frame}' in the recording's TF",
+        )
+    return True, f"its frame '{frame}' moves relative to base_frame '{rig.base_frame}' in the recording's TF"
 
 
 def iter_frames(

@@ -629,8 +629,6 @@ def label_recording(
     camera = None
     rig = info["rig"]
     if "size" in sizes and rig.camera is not None:
-        if rig.camera.pose is None:
-            notes.append("the camera pose is neither in the rig nor in the bag's TF: identity assumed")
         camera = rig_camera(rig, *sizes["size"])
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_maps=info["body_maps"])

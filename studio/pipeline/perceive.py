@@ -455,6 +455,8 @@ def perceive(
         ThreadPoolExecutor(workers, thread_name_prefix="studio-image") as pool,
     ):
         rig = resolve_sensor_poses(rec, rig)
+        if use_camera:
+            require_camera_pose(rec, rig)
         total = count_frames(rec, rig)
         it: Iterator[Any] = iter(iter_frames(rec, rig, report=report))
         t0 = time.perf_counter()
@@ -565,6 +567,21 @@ def far_bearings(camera: Any, xy: FloatArray, z: FloatArray) -> list[float]:
     uv, _ = camera.project(np.c_[xy[far], np.asarray(z, dtype=np.float64)[far]])
     ok = np.isfinite(uv[:, 0])
     return [float(a) for a in camera.pixel_to_angles(uv[ok, 0], uv[ok, 1])[0]]
+
+
+def require_camera_pose(rec: Any, rig: Any) -> None:
+    """Raise :class:`TfError` when the rig's camera has no pose (neither in the rig nor from the recording's
+    TF, after :func:`~studio.io.resolve_sensor_poses`): boxes would be placed from the wrong spot."""
+    from studio.io import unplaced_reason
+    from studio.io.errors import TfError
+
+    if rig.camera is None or rig.camera.pose is not None:
+        return
+    moving, why = unplaced_reason(rec, rig, rig.camera.topic)
+    hint = "a camera that moves on the robot is not supported; " if moving else ""
+    raise TfError(
+        f"the camera ({rig.camera.topic}) cannot be placed: {why}: {hint}give camera.pose in rig.yaml"
+    )
 
 
 def rig_camera(rig: Any, width: int, height: int) -> Any:

@@ -117,7 +117,7 @@ def label_thesis(
     from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
     from studio.io.sync import SyncReport
     from studio.pipeline.label import LabelRun
-    from studio.pipeline.perceive import PerceptionFrame, laser_in_base
+    from studio.pipeline.perceive import PerceptionFrame, laser_in_base, require_camera_pose
     from studio.track.base import Observations
     from studio.track.thesis import ThesisTracker
 
@@ -137,6 +137,8 @@ def label_thesis(
     t0 = time.perf_counter()
     with open_recording(recording) as rec:
         rig = resolve_sensor_poses(rec, rig)
+        if use_camera:
+            require_camera_pose(rec, rig)
         total = count_frames(rec, rig)
         tick = time.perf_counter()
         for frame in iter_frames(rec, rig, report=report):

@@ -290,7 +290,7 @@ def test_studio_label_refuses_a_camera_topic_that_is_not_a_panorama(tmp_path: Pa
     p = tmp_path / "not_pano.mcap"
     _write_json_mcap(p, [(16, 9)] * 5)
     rig = tmp_path / "rig.yaml"
-    rig.write_text("base_frame: base\ncamera:\n  topic: /cam\nlasers:\n  - topic: /scan\n")
+    rig.write_text("base_frame: base\ncamera:\n  topic: /cam\n  pose: {z: 1.0}\nlasers:\n  - topic: /scan\n")
     cmd = ["label", str(p), "--rig", str(rig), "--out", str(tmp_path / "run")]
     res = subprocess.run(
         [sys.executable, "-m", "studio.cli", *cmd],

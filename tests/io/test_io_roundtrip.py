@@ -330,6 +330,42 @@ def test_resolve_sensor_poses_from_tf(synthetic: Path) -> None:
     assert rig.camera.pose is None
 
 
+def test_a_camera_tf_cannot_place_is_refused_with_the_reason(tmp_path: Path) -> None:
+    from io_testdata import CAMERA
+
+    from studio.io import LaserConfig, resolve_sensor_poses, unplaced_reason
+    from studio.pipeline import LabelOptions
+    from studio.pipeline.perceive import perceive
+
+    path = write_synthetic(tmp_path / "r.mcap", tf_lasers=False)  # no static TF: 'camera' is nowhere
+    rig = parse_rig(RIG)
+    rig = type(rig)(**{**rig.__dict__, "lasers": (LaserConfig("/scan_front", FRONT),)})
+    with open_recording(path) as rec:
+        assert resolve_sensor_poses(rec, rig).camera.pose is None  # type: ignore[union-attr]
+        moving, why = unplaced_reason(rec, rig, "/camera/image/compressed")
+        assert not moving
+        assert why == "its frame 'camera' is not connected to base_frame 'base_link' in the recording's TF"
+        arm = TfBuffer()  # the camera on a joint that moves
+        for k, z in enumerate((1.0, 1.2)):
+            arm.add(
+                "base_link", "camera", T0 + k * 10**9, Pose3(CAMERA.R, np.array([0.0, 0.0, z])), static=False
+            )
+        moving, why = unplaced_reason(rec, rig, "/camera/image/compressed", tf=arm)
+        assert moving
+        assert "'camera' moves relative to base_frame 'base_link'" in why
+        from studio.commands.inspect import _pose_lines
+
+        assert (
+            "camera /camera/image/compressed: cannot be placed: its frame 'camera' is not"
+            in _pose_lines(rec, rig)[0]
+        )
+    with pytest.raises(TfError, match=r"camera \(/camera/image/compressed\) cannot be placed: its frame"):
+        perceive(path, rig, LabelOptions())
+    # the laser-only path needs no camera pose
+    frames, _ = perceive(path, rig, LabelOptions(sources="laser"))
+    assert frames
+
+
 @pytest.mark.parametrize("definitions", [True, False])
 def test_ros2_sqlite3_bag(tmp_path: Path, definitions: bool) -> None:
     """A ROS2 bag in sqlite3 storage (directory and the bare .db3 file) reads like the MCAP one; without
