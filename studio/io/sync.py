@@ -83,6 +83,8 @@ class SyncReport:
         anchor_span_ns: first and last stamp of the frames seen (None: none).
         odometry_span_ns: first and last stamp of the odometry topic's messages (None: none, or odometry
             from TF).
+        first_error: drop reason → the error of the first frame dropped for it, where one was raised (an
+            image that does not decode says why: an unsupported encoding, corrupt bytes …).
     """
 
     anchor: str = ""
@@ -95,6 +97,19 @@ class SyncReport:
     warnings: list[str] = field(default_factory=list)
     anchor_span_ns: tuple[int, int] | None = None
     odometry_span_ns: tuple[int, int] | None = None
+    first_error: dict[str, str] = field(default_factory=dict)
+
+    def drop(self, reason: str, error: Exception | None = None) -> None:
+        """Count a frame dropped for ``reason`` (keeping the first ``error``'s text)."""
+        self.dropped[reason] += 1
+        if error is not None:
+            self.first_error.setdefault(reason, str(error))
+
+    def _why(self) -> str:
+        return ", ".join(
+            f"{r}: {n}" + (f" (first: {self.first_error[r]})" if r in self.first_error else "")
+            for r, n in self.dropped.most_common()
+        )
 
     def warn(self, text: str) -> None:
         if text not in self.warnings:
@@ -107,6 +122,7 @@ class SyncReport:
             "candidates": self.candidates,
             "frames": self.frames,
             "dropped": dict(self.dropped),
+            "first_error": dict(self.first_error),
             "lasers": {
                 t: {
                     "attached": s.attached,
@@ -126,13 +142,15 @@ class SyncReport:
         n_drop = sum(self.dropped.values())
         if not n_drop:
             return None
-        why = ", ".join(f"{r}: {n}" for r, n in self.dropped.most_common())
-        return f"{n_drop} of {self.candidates} frames dropped ({why})"
+        return f"{n_drop} of {self.candidates} frames dropped ({self._why()})"
 
     def why_empty(self) -> str:
         """One line on why no frame was yielded."""
         if self.candidates == 0:
             return f"there are no {self.anchor} in the recording"
+        for reason in (DROP_BAD_IMAGE, DROP_BAD_SCAN):
+            if self.dropped[reason] == self.candidates and reason in self.first_error:
+                return f"none of the {self.candidates} {self.anchor} decodes ({self.first_error[reason]})"
         odo, fr = self.odometry_span_ns, self.anchor_span_ns
         if self.dropped[DROP_NO_ODOMETRY] == self.candidates and odo is not None and fr is not None:
             return (
@@ -147,8 +165,7 @@ class SyncReport:
         lines = [f"frames: {self.frames} yielded of {self.candidates} ({self.anchor})"]
         n_drop = sum(self.dropped.values())
         if n_drop:
-            why = ", ".join(f"{r}: {n}" for r, n in self.dropped.most_common())
-            lines.append(f"dropped: {n_drop} ({why})")
+            lines.append(f"dropped: {n_drop} ({self._why()})")
         for topic, st in self.lasers.items():
             mean = st.sum_dt_ns / st.attached / 1e6 if st.attached else 0.0
             lines.append(
@@ -501,8 +518,8 @@ def iter_frames(
         if p.image_msg is not None:
             try:
                 pano = decode_panorama(p.image_msg, p.stamp + latency)
-            except RecordingError:
-                rep.dropped[DROP_BAD_IMAGE] += 1
+            except RecordingError as exc:
+                rep.drop(DROP_BAD_IMAGE, exc)
                 return None
             h, w = pano.image.shape[:2]
             if w != 2 * h:
@@ -576,8 +593,8 @@ def iter_frames(
             rep.candidates += 1
             try:
                 msg = rec.decode(raw)
-            except RecordingError:
-                rep.dropped[DROP_BAD_IMAGE] += 1
+            except RecordingError as exc:
+                rep.drop(DROP_BAD_IMAGE, exc)
                 continue
             stamp = stamp_ns_of(msg, raw.log_ns) - latency
             new = _Pending(stamp, raw.log_ns, msg, [None] * len(laser_topics))
@@ -585,10 +602,10 @@ def iter_frames(
             k = topic_index[raw.topic]
             try:
                 scan = decode_scan(rec.decode(raw), raw.log_ns)
-            except RecordingError:
+            except RecordingError as exc:
                 if k == anchor_laser:
                     rep.candidates += 1
-                    rep.dropped[DROP_BAD_SCAN] += 1
+                    rep.drop(DROP_BAD_SCAN, exc)
                 else:
                     rep.skipped_scans["undecodable"] += 1
                 continue

@@ -264,7 +264,9 @@ def test_undecodable_image_is_dropped(tmp_path: Path) -> None:
         w.write_compressed_image("/cam", T0, "camera", jpg.tobytes())
         w.write_compressed_image("/cam", T0 + 100_000_000, "camera", b"not a jpeg at all")
         w.write_image("/cam_raw", T0, "camera", np.full((4, 8, 3), 7, np.uint8))
-    report = SyncReport()
+        w.write_compressed_image("/bad", T0, "camera", b"\xff\xd8 truncated")
+        w.write_compressed_image("/bad", T0 + 100_000_000, "camera", b"")
+    report, bad = SyncReport(), SyncReport()
     with open_recording(p) as rec:
         frames = list(
             iter_frames(rec, parse_rig({"base_frame": "camera", "camera": {"topic": "/cam"}}), report=report)
@@ -272,8 +274,15 @@ def test_undecodable_image_is_dropped(tmp_path: Path) -> None:
         raw_frames = list(
             iter_frames(rec, parse_rig({"base_frame": "camera", "camera": {"topic": "/cam_raw"}}))
         )
+        assert not list(
+            iter_frames(rec, parse_rig({"base_frame": "camera", "camera": {"topic": "/bad"}}), report=bad)
+        )
+    assert bad.why_empty().startswith("none of the 2 camera images on /bad decodes (")
     assert len(frames) == 1
     assert report.dropped["undecodable image"] == 1
+    why = report.first_error["undecodable image"]  # the decoder's reason is kept, and said
+    assert "does not decode" in why
+    assert f"1 of 2 frames dropped (undecodable image: 1 (first: {why}))" == report.dropped_note()
     assert raw_frames[0].panorama is not None
     assert raw_frames[0].panorama.encoded is None
     assert int(raw_frames[0].panorama.image[0, 0, 0]) == 7
