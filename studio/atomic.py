@@ -8,10 +8,37 @@ import shutil
 import tempfile
 from collections.abc import Collection, Iterator
 from pathlib import Path
+from typing import overload
 
 from studio.errors import StudioError
 
-__all__ = ["atomic_dir", "atomic_write_bytes", "atomic_write_text", "check_replaceable"]
+__all__ = ["atomic_dir", "atomic_write_bytes", "atomic_write_text", "check_replaceable", "out_file"]
+
+
+@overload
+def out_file(text: str | os.PathLike[str], option: str) -> Path: ...
+@overload
+def out_file(text: None, option: str) -> None: ...
+def out_file(text: str | os.PathLike[str] | None, option: str) -> Path | None:
+    """The file an output option names (None passes through), checked before any work is done: not a
+    folder, and inside a folder that exists or can be made, and can be written to.
+
+    Raises:
+        StudioError: one line naming ``option`` and what is wrong.
+    """
+    if text is None:
+        return None
+    p = Path(text)
+    if p.is_dir():
+        raise StudioError(f"{option} {p}: is a directory, expected a file name")
+    folder = p.absolute().parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise StudioError(f"{option} {p}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise StudioError(f"{option} {p}: cannot write in {folder}")
+    return p
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, fsync: bool = True) -> None:

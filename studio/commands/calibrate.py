@@ -26,7 +26,7 @@ from typing import Any
 
 import yaml
 
-from studio.atomic import atomic_write_text
+from studio.atomic import atomic_write_text, out_file
 from studio.errors import StudioError
 
 __all__ = ["load_camera", "load_camera_pose", "run"]
@@ -53,21 +53,14 @@ def run(args: argparse.Namespace) -> int:
     raise StudioError(f"unknown calibrate subcommand '{args.calib_command}'")
 
 
-def _out_file(path: str, option: str) -> Path:
-    p = Path(path)
-    if p.is_dir():
-        raise StudioError(f"{option} {p}: is a directory, expected a file name")
-    return p
-
-
 def _extrinsics(args: argparse.Namespace) -> int:
     from studio.calibrate.csvio import read_columns
     from studio.calibrate.lens import choose_lens_model
     from studio.calibrate.report import write_report
     from studio.viz.calibration import write_calibration_rrd
 
-    out = _out_file(args.out, "--out")
-    json_out = _out_file(args.json, "--json") if args.json else None
+    out = out_file(args.out, "--out")
+    json_out = out_file(args.json, "--json")
     if args.folds < 2:
         raise StudioError(f"--folds must be at least 2, got {args.folds}")
     W, H = args.image_size
@@ -209,7 +202,7 @@ def _project(args: argparse.Namespace) -> int:
     from studio.calibrate.csvio import read_points, write_uv
     from studio.calibrate.extrinsics import project_points
 
-    out = _out_file(args.out, "--out")
+    out = out_file(args.out, "--out")
     cam = load_camera(args.rig)
     xyz = read_points(args.points)
     W, H = args.image_size

@@ -16,7 +16,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from studio.atomic import atomic_write_text
+from studio.atomic import atomic_write_text, out_file
 from studio.errors import StudioError
 
 __all__ = ["run_people", "sparkline"]
@@ -36,15 +36,6 @@ def sparkline(values: list[float], *, width: int = 60) -> str:
     return "".join(_BARS[round((v - lo) / span * (len(_BARS) - 1))] for v in pick)
 
 
-def _out_path(text: str | None, option: str) -> Path | None:
-    if text is None:
-        return None
-    p = Path(text)
-    if p.is_dir():
-        raise StudioError(f"{option} {p}: is a directory, expected a file name")
-    return p
-
-
 def run_people(args: argparse.Namespace) -> int:
     """Run the command on parsed ``args`` (attributes named after the options above)."""
     from tqdm import tqdm
@@ -55,8 +46,8 @@ def run_people(args: argparse.Namespace) -> int:
     recording = Path(args.recording)
     if not recording.exists():
         raise StudioError(f"{recording}: no such recording")
-    out = _out_path(args.out, "--out")
-    json_out = _out_path(getattr(args, "json", None), "--json")
+    out = out_file(args.out, "--out")
+    json_out = out_file(getattr(args, "json", None), "--json")
     for name in ("max_offset_s", "image_period_s", "max_std_s", "max_yaw_deg"):
         value = getattr(args, name, None)
         if value is not None and not float(value) > 0:

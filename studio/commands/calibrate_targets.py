@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.atomic import atomic_write_text
+from studio.atomic import atomic_write_text, out_file
 
 __all__ = ["run_intrinsics", "run_targets", "write_correspondences"]
 
@@ -82,6 +82,8 @@ def run_targets(args: argparse.Namespace) -> int:
     target = str(getattr(args, "target", "ball"))
     if target not in ("ball", "board"):
         raise TargetError(f"--target must be ball or board, got '{target}'")
+    out_file(args.out, "--out")
+    out_file(getattr(args, "json", None), "--json")
     rig = load_rig(args.rig)
     if rig.camera is None:
         raise TargetError(f"{args.rig}: the rig has no camera")
@@ -165,6 +167,7 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     from studio.io import load_rig, open_recording
 
     src = Path(args.source)
+    out_file(getattr(args, "json", None), "--json")
     pattern = tuple(getattr(args, "pattern", (8, 5)))
     kw = {"pattern": (int(pattern[0]), int(pattern[1])), "square": float(getattr(args, "square", 0.07)),
           "face_size": getattr(args, "face_size", None)}  # fmt: skip

@@ -17,7 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from studio.atomic import atomic_write_text
+from studio.atomic import atomic_write_text, out_file
 from studio.detect.image import ImageDetections, get_image_detector
 from studio.errors import StudioError
 from studio.io.decode import looks_dual_fisheye
@@ -69,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     for p in paths:  # fail before loading the model
         if not Path(p).is_file():
             raise StudioError(f"image not found: {p}")
+    out = out_file(args.out, "--out")
     detector = get_image_detector(args.image_detector)
     lines = []
     show = sys.stderr.isatty() and len(paths) > 1
@@ -86,7 +87,10 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    atomic_write_text(args.out, "".join(line + "\n" for line in lines))
+    try:
+        atomic_write_text(out, "".join(line + "\n" for line in lines))
+    except OSError as exc:
+        raise StudioError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
     n = sum(len(json.loads(line)["boxes"]) for line in lines)
     print(f"{len(paths)} image(s), {n} people → {args.out} ({detector.name})")
     return 0

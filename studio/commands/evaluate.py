@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
-from studio.atomic import atomic_write_text
+from studio.atomic import atomic_write_text, out_file
 from studio.errors import StudioError
 
 __all__ = ["run"]
@@ -18,13 +17,11 @@ def run(args: argparse.Namespace) -> int:
     radius = float(args.radius)
     if not radius > 0:
         raise StudioError(f"--radius must be a positive number of metres, got {radius}")
+    out = out_file(args.json, "--json")
     ev = evaluate(args.pred, args.gt, radius=radius)
     print(f"studio evaluate: {args.pred} vs ground truth {args.gt}")
     print(ev.table())
-    if args.json:
-        out = Path(args.json)
-        if out.is_dir():
-            raise StudioError(f"--json {out}: is a directory, expected a file name")
+    if out is not None:
         try:
             atomic_write_text(out, json.dumps(ev.to_json(), indent=2, allow_nan=False) + "\n")
         except OSError as exc:

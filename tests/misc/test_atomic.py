@@ -7,7 +7,7 @@ import stat
 
 import pytest
 
-from studio.atomic import atomic_dir, atomic_write_text
+from studio.atomic import atomic_dir, atomic_write_text, out_file
 from studio.errors import StudioError
 
 
@@ -79,3 +79,21 @@ def test_atomic_dir_replaces_only_an_earlier_output(tmp_path) -> None:
     assert (out / "annotations" / "corrections.jsonl").read_text() == "keep"
     assert (data / "my.bag").read_text() == "bag"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_out_file_names_what_is_wrong_before_any_work(tmp_path) -> None:
+    assert out_file(None, "--json") is None
+    assert (
+        out_file(tmp_path / "new" / "deeper" / "m.json", "--json") == tmp_path / "new" / "deeper" / "m.json"
+    )
+    assert not (tmp_path / "new").exists()  # checked, not made
+    with pytest.raises(StudioError, match=r"^--json .*: is a directory, expected a file name$"):
+        out_file(tmp_path, "--json")
+    (tmp_path / "f").write_text("")
+    with pytest.raises(StudioError, match=r"^--out .*: .*/f is not a folder$"):
+        out_file(tmp_path / "f" / "x.csv", "--out")
+    if os.geteuid() != 0:  # root may write anywhere
+        ro = tmp_path / "ro"
+        ro.mkdir(mode=0o500)
+        with pytest.raises(StudioError, match="cannot write in"):
+            out_file(ro / "x.csv", "--out")

@@ -79,3 +79,20 @@ def test_detect_image_errors(tmp_path, yolo_model, capsys, make, detector, messa
     assert message in err
     assert err.count("\n") == 1
     assert out.read_text() == "previous\n"  # untouched on error
+
+
+def test_detect_image_out_is_checked_before_the_model_loads(tmp_path, capsys, monkeypatch):
+    import studio.commands.detect_image as cmd
+
+    monkeypatch.setattr(cmd, "get_image_detector", lambda name: pytest.fail("the model was loaded"))
+    img = _pano(tmp_path / "ok.png")
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("x")
+    for out, message in (
+        (tmp_path / "adir", "is a directory, expected a file name"),
+        (tmp_path / "afile" / "o.jsonl", "is not a folder"),
+    ):
+        assert main(["detect-image", img, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert message in err
+        assert err.count("\n") == 1
