@@ -59,12 +59,14 @@ _ODOM_TYPES = ("Odometry", "PoseInFrame", "PoseStamped")
 
 @dataclass
 class LaserSyncStats:
-    """Per-laser sync counts: frames with / without a scan, and |scan stamp − frame stamp| (ns)."""
+    """Per-laser sync counts: frames with / without a scan, |scan stamp − frame stamp| (ns), and the first
+    and last stamp of the scans read (None: none)."""
 
     attached: int = 0
     missing: int = 0
     sum_dt_ns: int = 0
     max_dt_ns: int = 0
+    span_ns: tuple[int, int] | None = None
 
 
 @dataclass
@@ -110,6 +112,23 @@ class SyncReport:
             f"{r}: {n}" + (f" (first: {self.first_error[r]})" if r in self.first_error else "")
             for r, n in self.dropped.most_common()
         )
+
+    def unsynced(self) -> list[str]:
+        """Per laser that no frame got a scan of (though frames were made): one line on why."""
+        out = []
+        for topic, st in self.lasers.items():
+            if st.attached or not self.frames:
+                continue
+            if st.span_ns is None or self.anchor_span_ns is None:
+                out.append(f"laser {topic}: no scan could be used")
+                continue
+            (a, b), (c, d) = st.span_ns, self.anchor_span_ns
+            out.append(
+                f"laser {topic}: no scan within max_dt of any frame: the scans' stamps span "
+                f"{a * 1e-9:.3f}–{b * 1e-9:.3f} s, the frames' {c * 1e-9:.3f}–{d * 1e-9:.3f} s "
+                "(are they stamped by different clocks?)"
+            )
+        return out
 
     def warn(self, text: str) -> None:
         if text not in self.warnings:
@@ -610,6 +629,12 @@ def iter_frames(
                     rep.skipped_scans["undecodable"] += 1
                 continue
             buffers[k].append(scan)
+            st = rep.lasers[rig.lasers[k].topic]
+            st.span_ns = (
+                (scan.stamp_ns, scan.stamp_ns)
+                if st.span_ns is None
+                else (min(st.span_ns[0], scan.stamp_ns), max(st.span_ns[1], scan.stamp_ns))
+            )
             ls = last_stamp[k]
             last_stamp[k] = scan.stamp_ns if ls is None else max(ls, scan.stamp_ns)
             for p in pending:

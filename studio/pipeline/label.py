@@ -622,7 +622,11 @@ def label_recording(
     dropped = info["sync_report"].dropped_note()
     if dropped:
         notes.append(dropped)
-    if info["use_laser"] and not any(np.isfinite(f.points[:, 0]).any() for f in frames):
+    unsynced = info["sync_report"].unsynced() if info["use_laser"] else []
+    if unsynced and len(unsynced) == len(info["rig"].lasers):
+        raise StudioError(f"{recording}: {unsynced[0]}; --sources camera labels without the lasers")
+    notes += unsynced
+    if info["use_laser"] and not unsynced and not any(np.isfinite(f.points[:, 0]).any() for f in frames):
         notes.append(
             "no scan has a valid range (all NaN, inf or outside range_min–range_max): the lasers found nobody"
         )

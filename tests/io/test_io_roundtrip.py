@@ -257,6 +257,26 @@ def test_upside_down_base_frame_is_refused(tmp_path: Path) -> None:
                 assert len(list(iter_frames(rec, rig))) == 10
 
 
+def test_lasers_on_another_clock_than_the_camera_are_named(tmp_path: Path) -> None:
+    path = write_synthetic(tmp_path / "r.mcap", latency_ns=3600 * 10**9)  # images stamped an hour late
+    rig = parse_rig({k: v for k, v in RIG.items() if k != "odometry"})
+    report = SyncReport()
+    with open_recording(path) as rec:
+        frames = list(iter_frames(rec, rig, report=report))
+    assert frames
+    assert all(not f.scans for f in frames)
+    lines = report.unsynced()
+    assert len(lines) == 2
+    assert lines[0].startswith(
+        "laser /scan_front: no scan within max_dt of any frame: the scans' stamps span "
+    )
+    assert lines[0].endswith("(are they stamped by different clocks?)")
+    synced = SyncReport()
+    with open_recording(write_synthetic(tmp_path / "ok.mcap")) as rec:
+        list(iter_frames(rec, rig, report=synced))
+    assert synced.unsynced() == []
+
+
 def test_undecodable_image_is_dropped(tmp_path: Path) -> None:
     p = tmp_path / "badimg.mcap"
     _ok, jpg = cv2.imencode(".jpg", np.zeros((8, 16, 3), np.uint8))
@@ -515,3 +535,15 @@ def test_rerun_mcap_loader_reads_the_written_file(synthetic: Path, tmp_path: Pat
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert out.stat().st_size > 10_000
+
+
+def test_studio_label_stops_when_no_laser_scan_meets_a_frame(tmp_path: Path) -> None:
+    from studio.errors import StudioError
+    from studio.pipeline.label import label_recording
+
+    path = write_synthetic(tmp_path / "r.mcap", latency_ns=3600 * 10**9)
+    rig = parse_rig({k: v for k, v in RIG.items() if k != "odometry"})
+    with pytest.raises(
+        StudioError, match=r"no scan within max_dt of any frame.*--sources camera labels without"
+    ):
+        label_recording(path, rig)
