@@ -634,6 +634,16 @@ def label_recording(
     rig = info["rig"]
     if "size" in sizes and rig.camera is not None:
         camera = rig_camera(rig, *sizes["size"])
+    looked = [f.image for f in frames if f.image is not None]
+    if camera is not None and opts.sources == "both" and looked and not any(len(d.boxes) for d in looked):
+        with_people = sum(f.laser is not None and len(f.laser) > 0 for f in frames)
+        if with_people:
+            notes.append(
+                f"the image detector found nobody in any of the {len(looked)} images it looked at, the "
+                f"lasers someone in {with_people} frames: with a camera a track is kept only where a box "
+                "confirmed it (a covered or dark lens? images too small?); --sources laser labels from the "
+                "lasers alone"
+            )
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_maps=info["body_maps"])
     t2 = time.perf_counter()
