@@ -83,6 +83,9 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
     except RecordingError as exc:
         return [f"first message not decodable: {exc}"]
     lines = [text]
+    if stamp_ns_of(msg) == 0:  # labelling then takes the log time
+        lines.append("header stamps: unset (0): the log time stands in for them")
+        return lines
     h0 = stamp_ns_of(msg, first.log_ns)
     stamps = f"header stamps: first − log time {(h0 - first.log_ns) / 1e9:+.3f} s"
     if last is not None and count > 1:

@@ -115,3 +115,18 @@ def test_inspect_bad_rig_exits_2(
 def test_inspect_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["inspect", str(tmp_path / "none.bag")]) == 2
     assert "recording not found" in capsys.readouterr().err
+
+
+def test_inspect_says_when_header_stamps_are_unset(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from io_testdata import T0, make_scan
+
+    from studio.io import RecordingWriter
+
+    p = tmp_path / "zero.mcap"
+    with RecordingWriter(p) as w:
+        for k in range(3):
+            w.write_scan("/scan", make_scan(0, "laser"), log_ns=T0 + k * 100_000_000)
+    assert main(["inspect", str(p)]) == 0
+    assert "header stamps: unset (0): the log time stands in for them" in capsys.readouterr().out
