@@ -120,10 +120,11 @@ class LaserScan:
         return self.angle_min + self.angle_increment * np.arange(len(self), dtype=np.float64)
 
     def valid(self) -> NDArray[np.bool_]:
-        """Mask (N,) of beams with a return: finite and within ``[range_min, range_max]``."""
+        """Mask (N,) of beams with a return: finite, above 0 (low-cost drivers write 0 for "no return",
+        with ``range_min`` 0 too) and within ``[range_min, range_max]``."""
         r = self.ranges
         with np.errstate(invalid="ignore"):
-            return np.isfinite(r) & (r >= self.range_min) & (r <= self.range_max)
+            return np.isfinite(r) & (r > 0.0) & (r >= self.range_min) & (r <= self.range_max)
 
     def open(self) -> NDArray[np.bool_]:
         """Mask (N,) of beams that met nothing within ``range_max``: ``+inf`` (REP 117) or a finite value

@@ -110,7 +110,7 @@ def decode_scan(msg: Any, stamp_ns: int | None = None) -> LaserScan:
             a0, a1 = float(msg.start_angle), float(msg.end_angle)
             da = (a1 - a0) / (ranges.size - 1) if ranges.size > 1 else 1.0
             rmin, rmax = 0.0, float("inf")
-        if not math.isfinite(rmax):
+        if not math.isfinite(rmax) or rmax <= max(rmin, 0.0):  # no limit, or none that can hold: unknown
             rmax = float(np.finfo(np.float32).max)
         if ranges.size and da == 0.0:
             raise ValueError("angle_increment is 0")

@@ -130,6 +130,20 @@ def test_zero_stamp_uses_fallback_and_scan_checks() -> None:
         decode_scan(NS(header=msg.header))
 
 
+def test_low_cost_scanner_conventions() -> None:
+    # RPLidar-like drivers: 0.0 for "no return" with range_min 0; a range_max that cannot hold (0 or below
+    # range_min) means no known limit
+    msg = NS(
+        header=NS(stamp=_stamp(1), frame_id="laser"), angle_min=-1.0, angle_max=1.0, angle_increment=0.5,
+        range_min=0.0, range_max=0.0, ranges=[1.0, 0.0, 12.0, -1.0, np.inf],
+    )  # fmt: skip
+    scan = decode_scan(msg)
+    assert scan.valid().tolist() == [True, False, True, False, False]
+    assert scan.open().tolist() == [False, False, False, False, True]
+    msg.range_min, msg.range_max = 0.2, 0.1
+    assert decode_scan(msg).valid().tolist() == [True, False, True, False, False]
+
+
 def test_base_types_are_checked() -> None:
     with pytest.raises(TypeError, match="stamp_ns must be an int"):
         LaserScan(1.5, "l", 0.0, 0.1, np.zeros(3), 0.0, 1.0)  # type: ignore[arg-type]
