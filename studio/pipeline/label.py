@@ -616,7 +616,7 @@ def label_recording(
             on_frame(frame, pf)
 
     frames, info = perceive(Path(recording), rig, opts, progress=progress, on_frame=hook)
-    notes: list[str] = []
+    notes: list[str] = list(info["notes"])
     if not frames:
         raise StudioError(f"{recording}: no frame could be built: {info['sync_report'].why_empty()}")
     dropped = info["sync_report"].dropped_note()

@@ -454,6 +454,14 @@ def perceive(
         open_recording(recording) as rec,
         ThreadPoolExecutor(workers, thread_name_prefix="studio-image") as pool,
     ):
+        notes = []
+        if rig.camera is not None and not use_camera and not rec.has_topic(rig.camera.topic):
+            # --sources laser on a recording without the rig's camera: label it as a laser-only rig does
+            notes.append(
+                f"the rig's camera topic {rig.camera.topic} is not in the recording: a frame is a scan of "
+                f"{rig.lasers[0].topic}, as on a rig without a camera"
+            )
+            rig = replace(rig, camera=None)
         rig = resolve_sensor_poses(rec, rig)
         if use_camera:
             require_camera_pose(rec, rig)
@@ -548,6 +556,7 @@ def perceive(
         "laser_beam_deg": beam_deg,
         "laser_sweep_ms": sweep_ms,
         "use_camera": use_camera,
+        "notes": notes,
         "use_laser": use_laser,
         "rig": rig,
     }
@@ -577,6 +586,8 @@ def require_camera_pose(rec: Any, rig: Any) -> None:
 
     if rig.camera is None or rig.camera.pose is not None:
         return
+    if not rec.has_topic(rig.camera.topic) or not rec.topics[rec.resolve_topic(rig.camera.topic)].count:
+        return  # iter_frames says what is wrong with the topic itself
     moving, why = unplaced_reason(rec, rig, rig.camera.topic)
     hint = "a camera that moves on the robot is not supported; " if moving else ""
     raise TfError(

@@ -547,3 +547,21 @@ def test_studio_label_stops_when_no_laser_scan_meets_a_frame(tmp_path: Path) -> 
         StudioError, match=r"no scan within max_dt of any frame.*--sources camera labels without"
     ):
         label_recording(path, rig)
+
+
+def test_sources_laser_labels_a_recording_without_the_rigs_camera(tmp_path: Path) -> None:
+    from studio.errors import StudioError
+    from studio.pipeline import LabelOptions
+    from studio.pipeline.label import label_recording
+
+    path = write_synthetic(tmp_path / "r.mcap")
+    rig = parse_rig({**RIG, "camera": {"topic": "/not/recorded"}})
+    run = label_recording(path, rig, options=LabelOptions(sources="laser"))
+    assert (
+        "the rig's camera topic /not/recorded is not in the recording: a frame is a scan of /scan_front"
+        in (" ".join(run.notes))
+    )
+    with open_recording(path) as rec:
+        assert len(run.labels) == rec.topics["/scan_front"].count  # a frame per scan, as without a camera
+    with pytest.raises(StudioError, match="camera topic '/not/recorded' is not in the recording"):
+        label_recording(path, rig)  # with the camera it is needed
