@@ -291,6 +291,12 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
         raise RecordingError(f"recording not found: {p}")
     kind: Kind
     files = [p]
+    meta = p.parent / "metadata.yaml"
+    if p.is_file() and meta.is_file() and "compression_format: zstd" in meta.read_text(errors="replace"):
+        raise RecordingError(
+            f"{p} is one file of the compressed ROS 2 bag {p.parent} (its metadata.yaml says how to read "
+            f"it): pass the folder {p.parent}"
+        )
     try:
         if p.is_dir():
             if (p / "metadata.yaml").exists():

@@ -565,3 +565,38 @@ def test_sources_laser_labels_a_recording_without_the_rigs_camera(tmp_path: Path
         assert len(run.labels) == rec.topics["/scan_front"].count  # a frame per scan, as without a camera
     with pytest.raises(StudioError, match="camera topic '/not/recorded' is not in the recording"):
         label_recording(path, rig)  # with the camera it is needed
+
+
+@pytest.mark.parametrize("mode", ["MESSAGE", "FILE"])
+def test_a_compressed_ros2_bag_reads_as_its_folder_not_as_its_file(tmp_path: Path, mode: str) -> None:
+    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2.writer import CompressionFormat, CompressionMode
+    from rosbags.typesys import Stores, get_typestore
+
+    from studio.io import LaserScan
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    out = tmp_path / "bag"
+    w = Writer(out, version=8)
+    w.set_compression(getattr(CompressionMode, mode), CompressionFormat.ZSTD)
+    w.open()
+    conn = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+    for k in range(3):
+        scan = make_scan(T0 + k * 100_000_000, "laser")
+        Time, Header = store.types["builtin_interfaces/msg/Time"], store.types["std_msgs/msg/Header"]
+        msg = store.types["sensor_msgs/msg/LaserScan"](
+            Header(Time(sec=scan.stamp_ns // 10**9, nanosec=scan.stamp_ns % 10**9), "laser"),
+            scan.angle_min, 0.0, scan.angle_increment, 0.0, 0.0, scan.range_min, scan.range_max,
+            scan.ranges, np.zeros(0, np.float32),
+        )  # fmt: skip
+        w.write(conn, scan.stamp_ns, store.serialize_cdr(msg, conn.msgtype))
+    w.close()
+    with open_recording(out) as rec:
+        scans = [decode_scan(rec.decode(m)) for m in rec.messages(["/scan"])]
+    assert [s.stamp_ns for s in scans] == [T0 + k * 100_000_000 for k in range(3)]
+    assert isinstance(scans[0], LaserScan)
+    (inner,) = [p for p in out.iterdir() if p.name != "metadata.yaml"]
+    with pytest.raises(
+        RecordingError, match=rf"is one file of the compressed ROS 2 bag .*: pass the folder {out}$"
+    ):
+        open_recording(inner)
