@@ -263,13 +263,43 @@ def point_times(f: PerceptionFrame) -> FloatArray | None:
     return f.beam_clocks[owner, 0] + f.beam_clocks[owner, 1] * j
 
 
-def open_beams_in_base(frame: Any) -> tuple[NDArray[np.float32], NDArray[np.int16]]:
+class BeamReturns:
+    """Per scanner, how often each beam met something so far: one that never did is blind.
+
+    The robot's body or a mount in a scanner's way reads NaN on some drivers, but ``+inf`` on those that
+    follow REP 117 for "no return" (rplidar_ros, pointcloud_to_laserscan with ``use_inf``), and ``+inf``
+    means free space up to ``range_max``: the static map then saw through the walls behind the robot, and
+    furniture there turned into people (a 360° scanner with its rear sector blocked: 29 → 191 false
+    positives on a simulated `moving` recording). A beam counts as open only once it has met something in
+    3 scans: a direction that never met anything says nothing until then (a robot facing a hall longer
+    than its scanner's reach learns it is open once someone has walked through it).
+    """
+
+    def __init__(self) -> None:
+        self._hits: dict[str, NDArray[np.int64]] = {}
+
+    def seeing(self, topic: str, scan: Any) -> NDArray[np.bool_]:
+        """Count ``scan`` (of ``topic``) and return the mask of its beams that are not blind."""
+        valid = scan.valid()
+        hits = self._hits.get(topic)
+        if hits is None or len(hits) != len(valid):  # a new scanner, or its beam count changed
+            hits = self._hits[topic] = np.zeros(len(valid), np.int64)
+        hits += valid
+        return hits >= 3
+
+
+def open_beams_in_base(
+    frame: Any, returns: BeamReturns | None = None
+) -> tuple[NDArray[np.float32], NDArray[np.int16]]:
     """The far ends ``(K, 2)`` in the base frame of ``frame``'s beams that met nothing within their
-    scanner's ``range_max`` (:meth:`studio.io.LaserScan.open`), and which scanner each came from ``(K,)``."""
+    scanner's ``range_max`` (:meth:`studio.io.LaserScan.open`), and which scanner each came from ``(K,)``;
+    with ``returns`` (updated), only beams that are not blind (:class:`BeamReturns`)."""
     ends, owner = [np.zeros((0, 2), np.float32)], [np.zeros(0, np.int16)]
     for k, sib in enumerate(frame.scans):
         scan = sib.scan
         is_open = scan.open()
+        if returns is not None:
+            is_open &= returns.seeing(sib.topic, scan)
         if not is_open.any():
             continue
         a = scan.angles()[is_open]
@@ -379,6 +409,7 @@ def perceive(
 
     # the static-world map grows while the recording is read (this thread mostly waits for the images)
     static_map = StaticMapBuilder() if options.static_filter and options.sources != "camera" else None
+    beam_returns = BeamReturns()
     # and per scanner a map of its scans in the base frame: what most of them hit is the robot's own body
     body_maps: list[Any] = []
     # odometry drift corrected by matching the scans (the static map and the tracker need a fixed world)
@@ -508,7 +539,7 @@ def perceive(
             )
             pf.beam_clocks = beam_clocks(frame)
             if static_map is not None:
-                pf.open_ends, pf.open_owner = open_beams_in_base(frame)
+                pf.open_ends, pf.open_owner = open_beams_in_base(frame, beam_returns)
             if matcher is not None and laser is not None:
                 pf.track_pose = matcher.step(
                     off_people(points, laser), frame.robot_pose if has_odometry else None
