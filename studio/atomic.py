@@ -12,7 +12,14 @@ from typing import overload
 
 from studio.errors import StudioError
 
-__all__ = ["atomic_dir", "atomic_write_bytes", "atomic_write_text", "check_replaceable", "out_file"]
+__all__ = [
+    "atomic_dir",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "check_replaceable",
+    "out_file",
+    "write_out",
+]
 
 
 @overload
@@ -39,6 +46,15 @@ def out_file(text: str | os.PathLike[str] | None, option: str) -> Path | None:
     if not os.access(folder, os.W_OK | os.X_OK):
         raise StudioError(f"{option} {p}: cannot write in {folder}")
     return p
+
+
+def write_out(path: Path, text: str, option: str) -> None:
+    """:func:`atomic_write_text` for the file an output option named (:func:`out_file`): a failure (a full
+    disk, a folder that refuses the file) is one line naming ``option``."""
+    try:
+        atomic_write_text(path, text)
+    except OSError as exc:
+        raise StudioError(f"{option} {path}: cannot write ({exc.strerror or exc})") from None
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, fsync: bool = True) -> None:

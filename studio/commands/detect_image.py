@@ -17,7 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from studio.atomic import atomic_write_text, out_file
+from studio.atomic import out_file, write_out
 from studio.detect.image import ImageDetections, get_image_detector
 from studio.errors import StudioError
 from studio.io.decode import looks_dual_fisheye
@@ -87,10 +87,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    try:
-        atomic_write_text(out, "".join(line + "\n" for line in lines))
-    except OSError as exc:
-        raise StudioError(f"--out {out}: cannot write ({exc.strerror or exc})") from None
+    write_out(out, "".join(line + "\n" for line in lines), "--out")
     n = sum(len(json.loads(line)["boxes"]) for line in lines)
     print(f"{len(paths)} image(s), {n} people → {args.out} ({detector.name})")
     return 0

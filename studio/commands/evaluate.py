@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from studio.atomic import atomic_write_text, out_file
+from studio.atomic import out_file, write_out
 from studio.errors import StudioError
 
 __all__ = ["run"]
@@ -22,9 +22,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"studio evaluate: {args.pred} vs ground truth {args.gt}")
     print(ev.table())
     if out is not None:
-        try:
-            atomic_write_text(out, json.dumps(ev.to_json(), indent=2, allow_nan=False) + "\n")
-        except OSError as exc:
-            raise StudioError(f"--json {out}: cannot write ({exc.strerror or exc})") from None
+        write_out(out, json.dumps(ev.to_json(), indent=2, allow_nan=False) + "\n", "--json")
         print(f"metrics written to {out}")
     return 0
