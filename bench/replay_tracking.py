@@ -6,6 +6,7 @@
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again
     .venv/bin/python bench/replay_tracking.py --scenario rooms --seeds 1 --laser-again --laser-only
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 --laser-step 1.0
+    .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again --without swaps
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs once
 per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a contract:
@@ -23,7 +24,8 @@ so positions differ from ``studio label``'s in the last digits): a laser detecto
 instead of a new pass one. ``--laser-step DEG`` simulates the recordings with coarser scanners (their own
 folders and pass ones): what a robot with a low-cost lidar (~1°) would get. ``--laser-only`` labels as
 ``studio label --sources laser`` (the path of a rig without a camera) from a pass one that ran without the
-image detector (stored separately, ~10x faster to make).
+image detector (stored separately, ~10x faster to make). ``--without STAGE ...`` switches stages of the
+offline tracker off (:data:`STAGES`): what each one still buys, measured on the same detections.
 ``--oracle`` replaces the association (online pass, stitching, encounter and swap repairs) by the ground
 truth: in every frame the observations go one to one to the nearest people within 0.5 m (Hungarian), and each
 person's observations are smoothed, interpolated and output as ``studio label`` outputs a track
@@ -72,6 +74,9 @@ from studio.track.models import cv_matrix
 from studio.track.offline import track_offline, tracks_from_hits
 from studio.track.smooth import filter_track
 
+STAGES = ("colour_cuts", "swaps", "encounters", "excursions", "claim", "gap_fill", "duplicates", "stitch")
+"""The stages of :func:`studio.track.offline.track_offline` that ``--without`` can switch off (its
+``OfflineConfig`` fields set to None)."""
 ORACLE_GATE_M = 0.5  # --oracle: an observation farther than this from every person is nobody's
 
 
@@ -434,6 +439,14 @@ def main() -> None:
         help="seeds of the --jitter noise: one tracking run of each recording per seed, and their spread",
     )
     ap.add_argument(
+        "--without",
+        nargs="+",
+        default=[],
+        choices=STAGES,
+        metavar="STAGE",
+        help=f"switch these offline tracking stages off (ablation): {', '.join(STAGES)}",
+    )
+    ap.add_argument(
         "--likelihood",
         action="store_true",
         help="compare how well our association and the ground truth's fit the tracker's model",
@@ -442,6 +455,8 @@ def main() -> None:
     if args.laser_step is not None and not args.laser_step > 0:
         ap.error(f"--laser-step must be > 0 degrees, got {args.laser_step}")
     options = LabelOptions()
+    if args.without:
+        options = replace(options, tracking=replace(options.tracking, **dict.fromkeys(args.without)))
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
     total_undone = 0

@@ -191,3 +191,19 @@ def test_summary_totals_each_jitter_seed_and_their_spread() -> None:
         "targets met by 1/2 (≤ 1 switch/min), 1/2 (F1 ≥ 0.95), 2/2 (MOTA ≥ 0.85)"
     )
     assert bench.summary(runs[:1]) == []
+
+
+@pytest.mark.parametrize("stage", load_bench("replay_tracking").STAGES)
+def test_without_switches_a_tracking_stage_off(stage: str) -> None:
+    """``--without STAGE``: each name is an optional stage of the offline tracker, which then runs without it
+    (two walkers in other colours, one exchange halfway: two people, two tracks, however many stages run)."""
+    from dataclasses import replace
+
+    from studio.pipeline.base import PIPELINE_TRACKING
+    from studio.track.offline import track_offline
+
+    assert getattr(PIPELINE_TRACKING, stage) is not None
+    config = replace(PIPELINE_TRACKING, **{stage: None})
+    obs, _ = _walk(False)
+    result = track_offline(obs, config=config)
+    assert len(result.track_ids()) == 2
