@@ -196,7 +196,7 @@ def test_summary_totals_each_jitter_seed_and_their_spread() -> None:
 @pytest.mark.parametrize("stage", load_bench("replay_tracking").STAGES)
 def test_without_switches_a_tracking_stage_off(stage: str) -> None:
     """``--without STAGE``: each name is an optional stage of the offline tracker, which then runs without it
-    (two walkers in other colours, one exchange halfway: two people, two tracks, however many stages run)."""
+    (two walkers 1 m apart in other colours: two people, two tracks, whichever stage is off)."""
     from dataclasses import replace
 
     from studio.pipeline.base import PIPELINE_TRACKING
