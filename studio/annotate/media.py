@@ -322,6 +322,7 @@ class RunMedia:
             rig = self._rig
             max_dt = max(rig.sync.max_dt_ns, 1_000_000)
             topics = [rec.resolve_topic(t) for t in self.laser_topics]
+            clouds = {t: x.cloud for t, x in zip(topics, rig.lasers, strict=True)}
             best: dict[str, tuple[int, Any]] = {}
             for raw in rec.messages(
                 topics,
@@ -329,7 +330,7 @@ class RunMedia:
                 stop_ns=stamp_ns + max_dt + _SEEK_AFTER_NS,
             ):
                 try:
-                    sc = decode_scan(rec.decode(raw), raw.log_ns)
+                    sc = decode_scan(rec.decode(raw), raw.log_ns, cloud=clouds.get(raw.topic))
                 except RecordingError:
                     continue
                 dt = abs(sc.stamp_ns - stamp_ns)

@@ -24,7 +24,7 @@ from studio.io import (
     open_recording,
 )
 from studio.io.base import RawMessage
-from studio.io.decode import stamp_ns_of
+from studio.io.decode import norm_frame, stamp_ns_of
 from studio.io.reader import Recording
 
 __all__ = ["describe_recording", "run"]
@@ -47,7 +47,7 @@ def _metres(v: float) -> str:
     return "∞" if v >= 1e30 else f"{v:g}"
 
 
-_SENSOR_KINDS = ("LaserScan", "CompressedImage", "Image", "RawImage", "Odometry")
+_SENSOR_KINDS = ("LaserScan", "PointCloud2", "CompressedImage", "Image", "RawImage", "Odometry")
 
 
 def _kind(msgtype: str) -> str:
@@ -70,6 +70,14 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
                     if s.time_increment
                     else "no time_increment (beams taken as measured at the header stamp)"
                 )
+            )
+        elif kind == "PointCloud2":
+            names = ", ".join(str(f.name) for f in msg.fields)
+            w, h = int(msg.width), int(msg.height)
+            text = (
+                f"frame '{norm_frame(msg.header.frame_id)}', {w * h} points ({w}×{h}), fields {names}: "
+                "a 3-D lidar; label it with a height band, "
+                "'cloud: {min_z, max_z}' in the rig's laser entry"
             )
         elif kind == "Odometry":
             o = decode_odometry(msg, first.log_ns)

@@ -3,6 +3,7 @@
 Messages are the objects of :meth:`Recording.decode`: ROS messages (ROS1 and ROS2 field names) or, from a
 plain MCAP with JSON encoding, attribute trees shaped like the ROS message or like the Foxglove schemas
 (``foxglove.LaserScan``, ``CompressedImage``, ``RawImage``, ``FrameTransform(s)``, ``PoseInFrame``).
+A 3-D lidar's sensor_msgs/PointCloud2 is sliced into a planar scan (:class:`~studio.io.base.CloudSlice`).
 The data stamp is the message header stamp; frame ids lose any leading ``/``.
 """
 
@@ -16,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from studio.geometry.se import Pose2, Pose3
-from studio.io.base import LaserScan, Odometry, Panorama
+from studio.io.base import CloudSlice, LaserScan, Odometry, Panorama
 from studio.io.errors import RecordingError
 
 __all__ = [
@@ -85,16 +86,26 @@ def yaw_from_quat(x: float, y: float, z: float, w: float) -> float:
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def decode_scan(msg: Any, stamp_ns: int | None = None) -> LaserScan:
-    """sensor_msgs/LaserScan (or foxglove.LaserScan) → :class:`LaserScan`.
+def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | None = None) -> LaserScan:
+    """sensor_msgs/LaserScan (or foxglove.LaserScan) → :class:`LaserScan`; a sensor_msgs/PointCloud2 is
+    sliced into one as ``cloud`` says.
 
     Args:
         msg: the deserialized message.
         stamp_ns: used when the header stamp is zero (unset), ns; typically the log time.
+        cloud: how to slice a point cloud (the rig's ``cloud`` of that laser); a cloud without it is an
+            error.
 
     Raises:
-        RecordingError: the message is not a laser scan.
+        RecordingError: the message is not a laser scan (or a point cloud with ``cloud``).
     """
+    if hasattr(msg, "point_step") and hasattr(msg, "fields"):
+        if cloud is None:
+            raise RecordingError(
+                "a PointCloud2 (3-D lidar) needs 'cloud: {min_z, max_z}' in the rig's laser entry: the "
+                "height band, metres in the cloud's frame, to slice into a planar scan"
+            )
+        return _slice_cloud(msg, stamp_ns, cloud)
     try:
         stamp = stamp_ns_of(msg, stamp_ns)
         frame = _frame_of(msg)
@@ -122,6 +133,71 @@ def decode_scan(msg: Any, stamp_ns: int | None = None) -> LaserScan:
         return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten, ti)
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable laser scan: {exc}") from None
+
+
+# sensor_msgs/PointField datatypes
+_POINT_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan:
+    """A PointCloud2 → the planar scan of its points in ``cloud``'s height band (see :class:`CloudSlice`).
+
+    Unorganised and organised clouds (``height`` > 1, rows padded to ``row_step``), either byte order; NaN
+    points are left out. The beams are taken as measured at the header stamp (``time_increment`` 0).
+    """
+    try:
+        stamp = stamp_ns_of(msg, stamp_ns)
+        frame = _frame_of(msg)
+        fields = {str(f.name): (int(f.offset), int(f.datatype)) for f in msg.fields}
+        missing = [c for c in "xyz" if c not in fields]
+        if missing:
+            raise ValueError(f"no {'/'.join(missing)} field (it has: {', '.join(fields) or 'none'})")
+        step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
+        row_step = int(getattr(msg, "row_step", 0) or width * step)
+        big = bool(getattr(msg, "is_bigendian", False))
+        formats = []
+        for c in "xyz":
+            off, dt = fields[c]
+            if dt not in _POINT_TYPES:
+                raise ValueError(f"field {c} has the unknown datatype {dt}")
+            code = np.dtype(_POINT_TYPES[dt])
+            if off < 0 or off + code.itemsize > step:
+                raise ValueError(f"field {c} (offset {off}) does not fit a {step}-byte point")
+            formats.append(code.newbyteorder(">" if big else "<"))
+        if width < 0 or height < 0 or row_step < width * step:
+            raise ValueError(f"bad layout: {width}×{height} points of {step} bytes, rows of {row_step}")
+        data = _bytes_of(msg.data)
+        if len(data) < height * row_step:
+            raise ValueError(
+                f"data holds {len(data)} bytes, {width}×{height} points need {height * row_step}"
+            )
+        dtype = np.dtype(
+            {
+                "names": list("xyz"),
+                "formats": formats,
+                "offsets": [fields[c][0] for c in "xyz"],
+                "itemsize": step,
+            }
+        )
+        rows = (
+            [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
+            if height and width
+            else [np.zeros(0, dtype)]
+        )
+        pts = np.concatenate(rows)
+        x, y, z = (pts[c].astype(np.float64) for c in "xyz")
+    except (AttributeError, TypeError, ValueError) as exc:
+        raise RecordingError(f"not a decodable point cloud: {exc}") from None
+    r = np.hypot(x, y)
+    keep = np.isfinite(r) & np.isfinite(z) & (z >= cloud.min_z) & (z <= cloud.max_z) & (r >= cloud.range_min)
+    n = max(round(360.0 / cloud.step_deg), 1)
+    da = 2.0 * math.pi / n
+    ranges = np.full(n, np.inf)
+    beam = np.floor((np.arctan2(y[keep], x[keep]) + math.pi) / da).astype(np.int64) % n
+    np.minimum.at(ranges, beam, r[keep])
+    ranges[~np.isfinite(ranges)] = np.nan
+    rmax = float(np.finfo(np.float32).max)
+    return LaserScan(stamp, frame, -math.pi + 0.5 * da, da, ranges.astype(np.float32), cloud.range_min, rmax)
 
 
 def image_format(data: bytes) -> str:

@@ -11,12 +11,17 @@ Example::
     lasers:
       - topic: /scan_front
         pose: {x: 0.35, y: 0.0, z: 0.30, yaw: 0.0}
+      - topic: /velodyne_points       # a 3-D lidar (PointCloud2), 0.8 m up: its points 0.2-0.6 m
+        cloud: {min_z: -0.6, max_z: -0.2, step_deg: 0.25}  # above the floor make a planar scan
     sync: {max_dt_s: 0.05, camera_latency_s: 0.0}
 
 Poses are metres and radians in ``base_frame``; missing pose keys are 0. A sensor without ``pose`` takes
 its pose from the TF tree of the recording. ``camera.lens_offset`` (metres, ``|b| < 0.2``) puts the two
 lens centres of a dual-fisheye camera at ``(±b, 0, 0)`` in the camera frame
-(:class:`~studio.geometry.equirect.EquirectCamera`); it is written only when non-zero.
+(:class:`~studio.geometry.equirect.EquirectCamera`); it is written only when non-zero. A laser entry
+with ``cloud`` reads a PointCloud2 topic and slices it into a planar scan
+(:class:`~studio.io.base.CloudSlice`: ``min_z``/``max_z`` metres in the cloud's frame, ``step_deg``
+default 0.25, ``range_min`` default 0.1 m).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import yaml
 
 from studio.atomic import atomic_write_text
 from studio.geometry.se import Pose3
+from studio.io.base import CloudSlice
 from studio.io.errors import RigError
 
 __all__ = [
@@ -46,6 +52,7 @@ __all__ = [
 ]
 
 _POSE_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
+_CLOUD_KEYS = ("min_z", "max_z", "step_deg", "range_min")
 MAX_LENS_OFFSET_M = 0.2  # largest |camera.lens_offset| accepted, metres
 
 
@@ -98,10 +105,12 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class LaserConfig:
-    """A 2D laser scanner: LaserScan topic and pose T_base_laser (None → from TF)."""
+    """A 2D laser scanner: LaserScan topic and pose T_base_laser (None → from TF); or a 3-D lidar's
+    PointCloud2 topic with ``cloud``, the height band sliced into a planar scan (:class:`CloudSlice`)."""
 
     topic: str
     pose: Pose3 | None = None
+    cloud: CloudSlice | None = None
 
 
 @dataclass(frozen=True)
@@ -181,6 +190,8 @@ class Rig:
             entry: dict[str, Any] = {"topic": laser.topic}
             if laser.pose is not None:
                 entry["pose"] = _pose_dict(laser.pose)
+            if laser.cloud is not None:
+                entry["cloud"] = {k: float(getattr(laser.cloud, k)) for k in _CLOUD_KEYS}
             lasers.append(entry)
         d["lasers"] = lasers
         d["sync"] = {
@@ -280,12 +291,20 @@ def parse_rig(data: Any, *, source: str = "rig") -> Rig:
             raise c.fail("lasers", f"must be a list of {{topic, pose}}, got {type(raw_lasers).__name__}")
         for i, item in enumerate(raw_lasers):
             key = f"lasers[{i}]"
-            lm = c.mapping(item, key, ("topic", "pose"), ("topic",))
+            lm = c.mapping(item, key, ("topic", "pose", "cloud"), ("topic",))
             lpose = c.pose(lm["pose"], f"{key}.pose") if lm.get("pose") is not None else None
             topic = c.string(lm["topic"], f"{key}.topic")
             if any(x.topic == topic for x in lasers):
                 raise c.fail(f"{key}.topic", f"'{topic}' is listed twice")
-            lasers.append(LaserConfig(topic=topic, pose=lpose))
+            cloud = None
+            if lm.get("cloud") is not None:
+                cm = c.mapping(lm["cloud"], f"{key}.cloud", _CLOUD_KEYS, ("min_z", "max_z"))
+                vals = {k: c.number(v, f"{key}.cloud.{k}") for k, v in cm.items()}
+                try:
+                    cloud = CloudSlice(**vals)
+                except ValueError as exc:
+                    raise c.fail(f"{key}.cloud", str(exc)) from None
+            lasers.append(LaserConfig(topic=topic, pose=lpose, cloud=cloud))
     if not lasers and camera is None:
         raise c.fail("lasers", "a rig needs at least one laser or a camera (neither is given)")
 

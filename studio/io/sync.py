@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from studio.geometry.se import Pose2, Pose3
-from studio.io.base import Frame, LaserScan, ScanInBase
+from studio.io.base import CloudSlice, Frame, LaserScan, ScanInBase
 from studio.io.decode import (
     decode_odometry,
     decode_panorama,
@@ -34,7 +34,7 @@ from studio.io.decode import (
 )
 from studio.io.errors import RecordingError, TfError
 from studio.io.reader import Recording
-from studio.io.rig import Rig
+from studio.io.rig import LaserConfig, Rig
 from studio.io.tf import TfBuffer, tf_topics
 
 __all__ = [
@@ -53,7 +53,7 @@ DROP_NOT_AFTER = "a duplicate or out-of-order stamp"
 _UPRIGHT_MIN_COS = 0.5  # the base frame's z axis within 60° of the odometry frame's
 
 _IMAGE_TYPES = ("CompressedImage", "Image", "RawImage")
-_SCAN_TYPES = ("LaserScan",)
+_SCAN_TYPES = ("LaserScan", "PointCloud2")
 _ODOM_TYPES = ("Odometry", "PoseInFrame", "PoseStamped")
 
 
@@ -222,7 +222,7 @@ def count_frames(rec: Recording, rig: Rig) -> int:
     if rig.camera:
         topic = _check_topic(rec, rig.camera.topic, "camera", _IMAGE_TYPES)
     else:
-        topic = _check_topic(rec, rig.lasers[0].topic, "laser", _SCAN_TYPES)
+        topic = check_laser_topic(rec, rig.lasers[0])
     return rec.topics[topic].count
 
 
@@ -348,11 +348,34 @@ class _Pending:
     best: list[tuple[int, LaserScan] | None]
 
 
-def _first_frame_id(rec: Recording, topic: str) -> str | None:
+def check_laser_topic(rec: Recording, laser: LaserConfig) -> str:
+    """The recording's name of a laser's topic, checked: a LaserScan, or a PointCloud2 with ``cloud``.
+
+    Raises:
+        RecordingError: the topic is missing, carries another type, or a cloud without ``cloud`` (or the
+            other way round).
+    """
+    topic = _check_topic(rec, laser.topic, "laser", _SCAN_TYPES)
+    is_cloud = rec.topics[topic].msgtype.endswith("PointCloud2")
+    if is_cloud and laser.cloud is None:
+        raise RecordingError(
+            f"{rec.path}: the rig's laser topic '{laser.topic}' carries PointCloud2 (a 3-D lidar): give the "
+            "height band to slice into a planar scan, e.g. 'cloud: {min_z: -0.6, max_z: -0.2}' (metres in "
+            "the cloud's frame: legs 0.2-0.6 m above the floor for a lidar 0.8 m up)"
+        )
+    if not is_cloud and laser.cloud is not None:
+        raise RecordingError(
+            f"{rec.path}: the rig's laser topic '{laser.topic}' carries "
+            f"{rec.topics[topic].msgtype}, not PointCloud2: drop its 'cloud' entry"
+        )
+    return topic
+
+
+def _first_frame_id(rec: Recording, topic: str, cloud: CloudSlice | None) -> str | None:
     """Frame id of the first decodable scan on ``topic``."""
     for raw in rec.messages([topic]):
         try:
-            return decode_scan(rec.decode(raw), raw.log_ns).frame_id
+            return decode_scan(rec.decode(raw), raw.log_ns, cloud=cloud).frame_id
         except RecordingError:
             continue
     return None
@@ -456,7 +479,7 @@ def iter_frames(
     window_ns = int(window_s * 1e9)
 
     cam_topic = _check_topic(rec, rig.camera.topic, "camera", _IMAGE_TYPES) if rig.camera else None
-    laser_topics = [_check_topic(rec, x.topic, "laser", _SCAN_TYPES) for x in rig.lasers]
+    laser_topics = [check_laser_topic(rec, x) for x in rig.lasers]
     rep.anchor = f"camera images on {cam_topic}" if cam_topic else f"scans of {laser_topics[0]}"
     for x in rig.lasers:
         rep.lasers.setdefault(x.topic, LaserSyncStats())
@@ -473,7 +496,7 @@ def iter_frames(
     for k, (cfg, topic) in enumerate(zip(rig.lasers, laser_topics, strict=True)):
         if cfg.pose is not None:
             continue
-        frame_id = _first_frame_id(rec, topic)
+        frame_id = _first_frame_id(rec, topic, cfg.cloud)
         if frame_id is None:
             continue
         try:
@@ -620,7 +643,7 @@ def iter_frames(
         else:
             k = topic_index[raw.topic]
             try:
-                scan = decode_scan(rec.decode(raw), raw.log_ns)
+                scan = decode_scan(rec.decode(raw), raw.log_ns, cloud=rig.lasers[k].cloud)
             except RecordingError as exc:
                 if k == anchor_laser:
                     rep.candidates += 1

@@ -80,6 +80,12 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
     for las in rig.lasers:
         pose = las.pose.as_dict() if las.pose is not None else "from TF in the recording"
         line = f"- laser `{las.topic}`, pose: {pose}"
+        c = getattr(las, "cloud", None)
+        if c is not None:
+            line += (
+                f", a 3-D lidar's point clouds sliced into a planar scan (points {c.min_z:g} to "
+                f"{c.max_z:g} m in its frame, beams {c.step_deg:g}° apart, the nearest point of each)"
+            )
         step = beam_deg.get(las.topic)
         if step is not None:
             line += f", beams {step:.2f}° apart"

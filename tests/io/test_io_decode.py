@@ -337,3 +337,84 @@ def test_mcap_without_summary(tmp_path: Path) -> None:
         assert rec.topics["/j"].count == 3
         assert rec.end_ns == T0 + 2
         assert rec.decode(next(iter(rec.messages(["/j"])))).a == 1
+
+
+def _cloud_msg(points: np.ndarray, *, big: bool = False, f8: bool = False, pad: int = 0, rows: int = 1) -> NS:
+    """A PointCloud2-shaped message of ``points`` (N, 3): x, y, z at offsets 0/… plus an intensity field,
+    ``rows`` rows each padded by ``pad`` bytes, either byte order, float32 or float64 coordinates."""
+    code = ">" if big else "<"
+    ftype = f"{code}f8" if f8 else f"{code}f4"
+    size = 8 if f8 else 4
+    dtype = np.dtype(
+        {"names": ["x", "y", "z", "i"], "formats": [ftype] * 3 + [f"{code}f4"],
+         "offsets": [0, size, 2 * size, 3 * size + 4], "itemsize": 3 * size + 12}
+    )  # fmt: skip
+    n = len(points) // rows
+    rec = np.zeros(len(points), dtype)
+    for k, c in enumerate("xyz"):
+        rec[c] = points[:, k]
+    row_bytes = [rec[r * n : (r + 1) * n].tobytes() + b"\0" * pad for r in range(rows)]
+    fields = [
+        NS(name=c, offset=o, datatype=8 if f8 else 7, count=1)
+        for c, o in zip("xyz", [0, size, 2 * size], strict=True)
+    ]
+    fields.append(NS(name="intensity", offset=3 * size + 4, datatype=7, count=1))
+    return NS(
+        header=NS(stamp=_stamp(T0), frame_id="/lidar"), height=rows, width=n, fields=fields,
+        is_bigendian=big, point_step=dtype.itemsize, row_step=n * dtype.itemsize + pad,
+        data=b"".join(row_bytes), is_dense=False,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("big", "f8", "pad", "rows"), [(False, False, 0, 1), (True, True, 0, 1), (False, False, 6, 2)]
+)
+def test_a_point_cloud_is_sliced_into_a_planar_scan(big: bool, f8: bool, pad: int, rows: int) -> None:
+    from studio.io.base import CloudSlice
+
+    pts = np.array(
+        [
+            [2.0, 0.0, 0.0],  # ahead, in the band
+            [3.0, 0.0, 0.1],  # the same bearing, farther: the nearer one is the beam's range
+            [1.0, 0.0, 0.5],  # nearer but above the band
+            [0.0, -1.5, -0.2],  # right, in the band
+            [0.05, 0.0, 0.0],  # on the robot (inside range_min)
+            [np.nan, np.nan, np.nan],  # an organised cloud's ray without a return
+        ]
+    )
+    msg = _cloud_msg(pts, big=big, f8=f8, pad=pad, rows=rows)
+    scan = decode_scan(msg, cloud=CloudSlice(min_z=-0.3, max_z=0.3, step_deg=1.0))
+    assert scan.frame_id == "lidar"
+    assert scan.stamp_ns == T0
+    assert len(scan) == 360
+    assert scan.time_increment == 0.0
+    got = scan.points()[scan.valid()]
+    np.testing.assert_allclose(np.hypot(*got.T), [1.5, 2.0], atol=1e-6)  # bearings -90° and 0°
+    bearings = np.degrees(np.arctan2(got[:, 1], got[:, 0]))
+    np.testing.assert_allclose(bearings, [-89.5, 0.5], atol=1e-6)  # centres of the 1° beams they fall in
+    assert np.isnan(scan.ranges[~scan.valid()]).all()  # an empty beam says nothing (not free space)
+
+
+def test_bad_point_clouds_are_one_clear_error() -> None:
+    from studio.io.base import CloudSlice
+
+    band = CloudSlice(min_z=-0.3, max_z=0.3)
+    msg = _cloud_msg(np.zeros((4, 3)))
+    with pytest.raises(RecordingError, match="needs 'cloud: \\{min_z, max_z\\}'"):
+        decode_scan(msg)
+    short = NS(**{**msg.__dict__, "data": msg.data[:-1]})
+    with pytest.raises(RecordingError, match="not a decodable point cloud: data holds"):
+        decode_scan(short, cloud=band)
+    no_z = NS(**{**msg.__dict__, "fields": [f for f in msg.fields if f.name != "z"]})
+    with pytest.raises(RecordingError, match="no z field"):
+        decode_scan(no_z, cloud=band)
+    odd = NS(
+        **{
+            **msg.__dict__,
+            "fields": [NS(name=f.name, offset=f.offset, datatype=9, count=1) for f in msg.fields],
+        }
+    )
+    with pytest.raises(RecordingError, match="unknown datatype 9"):
+        decode_scan(odd, cloud=band)
+    with pytest.raises(ValueError, match="min_z must be below max_z"):
+        CloudSlice(min_z=0.3, max_z=-0.3)

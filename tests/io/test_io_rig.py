@@ -63,6 +63,22 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     np.testing.assert_allclose(back.camera.pose.matrix(), rig.camera.pose.matrix(), atol=1e-12)
 
 
+def test_a_point_cloud_laser_round_trips_with_its_height_band(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text(
+        "base_frame: base_link\nlasers:\n  - topic: /points\n    cloud: {min_z: -0.6, max_z: -0.2}\n"
+    )
+    rig = load_rig(p)
+    cloud = rig.lasers[0].cloud
+    assert cloud is not None
+    assert (cloud.min_z, cloud.max_z, cloud.step_deg, cloud.range_min) == (-0.6, -0.2, 0.25, 0.1)
+    save_rig(rig, tmp_path / "again.yaml")
+    assert load_rig(tmp_path / "again.yaml").lasers[0].cloud == cloud
+    plain = Rig(base_frame="b", lasers=(LaserConfig("/scan"),))
+    assert plain.lasers[0].cloud is None
+    assert "cloud" not in plain.to_dict()["lasers"][0]
+
+
 def test_laser_only_rig_and_defaults(tmp_path: Path) -> None:
     p = tmp_path / "rig.yaml"
     p.write_text("base_frame: laser\nlasers:\n  - topic: /scan\n")
@@ -114,6 +130,17 @@ def test_laser_only_rig_and_defaults(tmp_path: Path) -> None:
         ("base_frame: b\ncamera: {topic: /c, lens_offset: '1cm'}\n", "'camera.lens_offset' must be a finite"),
         ("base_frame: b\ncamera: {topic: /c, lens_offset: 0.25}\n", "'camera.lens_offset' must be within"),
         ("base_frame: b\ncamera: {topic: /c, lens_offset: -0.2}\n", "'camera.lens_offset' must be within"),
+        (
+            "base_frame: b\nlasers: [{topic: /v, cloud: {max_z: 0}}]\n",
+            r"'lasers\[0\].cloud.min_z' is required",
+        ),
+        ("base_frame: b\nlasers: [{topic: /v, cloud: {min_z: 0, max_z: 0}}]\n", "min_z must be below max_z"),
+        (
+            "base_frame: b\nlasers: [{topic: /v, cloud: {min_z: 0, max_z: 1, step_deg: 0}}]\n",
+            r"step_deg must be in \(0.05, 5\]",
+        ),
+        ("base_frame: b\nlasers: [{topic: /v, cloud: {min_z: 0, max_z: 1, rings: 16}}]\n", "not a known key"),
+        ("base_frame: b\nlasers: [{topic: /v, cloud: -0.3}]\n", r"'lasers\[0\].cloud' must be a mapping"),
     ],
 )
 def test_bad_rigs(tmp_path: Path, text: str, match: str) -> None:

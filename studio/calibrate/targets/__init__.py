@@ -88,10 +88,11 @@ def read_scans(rec: Recording, rig: Rig) -> list[ScanPoints]:
             raise TargetError(f"laser topic {cfg.topic} is not in {rec.path}")
     poses = dict(zip((c.topic for c in rig.lasers), _laser_poses(rec, rig), strict=True))
     names = {rec.resolve_topic(c.topic): c.topic for c in rig.lasers}
+    clouds = {c.topic: c.cloud for c in rig.lasers}
     out: list[ScanPoints] = []
     for raw in rec.messages(list(names)):
         topic = names.get(raw.topic, raw.topic)
-        scan = decode_scan(rec.decode(raw), raw.log_ns)
+        scan = decode_scan(rec.decode(raw), raw.log_ns, cloud=clouds[topic])
         a = scan.angles()
         r = np.where(scan.valid(), scan.ranges.astype(np.float64), np.nan)
         p = np.stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)], axis=1)

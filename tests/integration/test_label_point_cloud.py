@@ -1,0 +1,169 @@
+"""A 3-D lidar's point clouds label as the planar scans they contain.
+
+The simulated recording is written again with its front scanner's scans as sensor_msgs/PointCloud2 (ROS2
+MCAP), as a 3-D lidar publishes them: each return becomes a point inside the rig's height band, and the
+points a 3-D lidar adds (the floor, walls above the legs, returns nearer than the body, NaN points of an
+organised cloud) lie outside it. Sliced with ``cloud: {min_z, max_z}``, the labels must be those of the
+original scans (the virtual beams' bearings are rounded to the 0.25° grid: positions agree to centimetres).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from studio.io import load_rig
+from studio.pipeline import LabelOptions
+from studio.pipeline.label import label_recording
+
+pytestmark = pytest.mark.slow
+
+SCANS = """base_frame: base_link
+odometry: {topic: /odom}
+lasers:
+  - topic: /scan_front
+  - topic: /scan_rear
+"""
+CLOUD = """base_frame: base_link
+odometry: {topic: /odom}
+lasers:
+  - topic: /scan_front
+    cloud: {min_z: -0.15, max_z: 0.15}
+  - topic: /scan_rear
+"""
+POINT = np.dtype(
+    {
+        "names": ["x", "y", "z", "intensity", "ring"],
+        "formats": ["<f4", "<f4", "<f4", "<f4", "<u2"],
+        "offsets": [0, 4, 8, 16, 20],
+        "itemsize": 32,
+    }
+)
+
+
+def cloud_of(scan: Any, store: Any, rng: np.random.Generator) -> Any:
+    """A PointCloud2 holding ``scan``'s returns in the band and a 3-D lidar's other points outside it."""
+    r = np.asarray(scan.ranges, dtype=np.float64)
+    a = scan.angle_min + scan.angle_increment * np.arange(len(r))
+    ok = np.isfinite(r) & (r >= scan.range_min) & (r <= scan.range_max)
+    r, a = r[ok], a[ok]
+    n = len(r)
+    pts = np.zeros((4, n), POINT)  # one array: concatenating padded records may drop the padding
+    band, other, body, blank = pts
+    band["x"], band["y"], band["z"] = r * np.cos(a), r * np.sin(a), rng.uniform(-0.12, 0.12, n)
+    # the same bearings above and below the band, nearer than the returns
+    other["x"], other["y"] = 0.5 * r * np.cos(a), 0.5 * r * np.sin(a)
+    other["z"] = np.where(np.arange(n) % 2 == 0, -0.4, 0.9)
+    body["x"], body["y"] = 0.05 * np.cos(a), 0.05 * np.sin(a)  # on the robot itself, inside range_min
+    for c in "xyz":  # an organised cloud's rays without a return
+        blank[c] = np.nan
+    field = store.types["sensor_msgs/msg/PointField"]
+    fields = [
+        field(name=name, offset=off, datatype=dt, count=1)
+        for name, off, dt in (("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 16, 7), ("ring", 20, 4))
+    ]
+    return store.types["sensor_msgs/msg/PointCloud2"](
+        header=scan.header,
+        height=len(pts),
+        width=n,
+        fields=fields,
+        is_bigendian=False,
+        point_step=POINT.itemsize,
+        row_step=n * POINT.itemsize,
+        data=np.frombuffer(pts.tobytes(), np.uint8),
+        is_dense=False,
+    )
+
+
+def as_point_clouds(src: Path, dst: Path, topic: str) -> None:
+    """``src`` (ROS2 MCAP) written again with ``topic``'s scans as point clouds (:func:`cloud_of`)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    rng = np.random.default_rng(0)
+    with AnyReader([src]) as reader, Writer(dst, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {}
+        for c in reader.connections:
+            msgtype = "sensor_msgs/msg/PointCloud2" if c.topic == topic else c.msgtype
+            qos = c.ext.offered_qos_profiles if hasattr(c.ext, "offered_qos_profiles") else ""
+            conns[c.id] = writer.add_connection(
+                c.topic, msgtype, typestore=store, serialization_format="cdr", offered_qos_profiles=qos
+            )
+        for c, t, raw in reader.messages():
+            if c.topic == topic:
+                msg = cloud_of(reader.deserialize(raw, c.msgtype), store, rng)
+                raw = store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
+            writer.write(conns[c.id], t, raw)
+
+
+def _run(recording: Path, rig_text: str, tmp: Path) -> Any:
+    rig = tmp / "rig.yaml"
+    rig.write_text(rig_text)
+    return label_recording(recording, load_rig(rig), options=LabelOptions(sources="laser"))
+
+
+def _labels(recording: Path, rig_text: str, tmp: Path) -> dict[int, np.ndarray]:
+    run = _run(recording, rig_text, tmp)
+    return {f.stamp_ns: np.array([(p.x, p.y) for p in f.people]).reshape(-1, 2) for f in run.labels}
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from studio.sim import simulate
+
+    out = tmp_path_factory.mktemp("sim") / "moving"
+    simulate("moving", out=out, seconds=8.0, seed=2)
+    return out
+
+
+def test_point_clouds_label_as_the_scans_they_contain(
+    simulated: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from studio.cli import main
+    from studio.pipeline.export import dataset_card
+
+    bag = tmp_path / "clouds"
+    as_point_clouds(simulated / "recording.mcap", bag, "/scan_front")
+    scans = _labels(simulated / "recording.mcap", SCANS, tmp_path)
+    run = _run(bag, CLOUD, tmp_path)
+    clouds = {f.stamp_ns: np.array([(p.x, p.y) for p in f.people]).reshape(-1, 2) for f in run.labels}
+    card = dataset_card(
+        run,
+        options=LabelOptions(sources="laser"),
+        recording=bag,
+        rig=load_rig(tmp_path / "rig.yaml"),
+        n_images=0,
+    )
+    assert "- laser `/scan_front`" in card
+    assert "a 3-D lidar's point clouds sliced into a planar scan (points -0.15 to 0.15 m" in card
+    assert main(["inspect", str(bag)]) == 0
+    out = capsys.readouterr().out
+    assert "/scan_front" in out
+    assert "a 3-D lidar; label it with a height band" in out
+    assert scans.keys() == clouds.keys()
+    total = sum(len(v) for v in scans.values())
+    assert total > 100
+    matched = 0
+    for stamp, a in scans.items():
+        b = clouds[stamp]
+        if len(a) and len(b):
+            d = np.hypot(*(a[:, None, :] - b[None, :, :]).transpose(2, 0, 1))
+            matched += int(np.sum(d.min(axis=1) < 0.05))
+    assert matched >= 0.95 * total
+    assert abs(sum(len(v) for v in clouds.values()) - total) <= 0.03 * total
+
+
+def test_a_point_cloud_without_a_height_band_is_refused(simulated: Path, tmp_path: Path) -> None:
+    from studio.io.errors import RecordingError
+
+    bag = tmp_path / "clouds"
+    as_point_clouds(simulated / "recording.mcap", bag, "/scan_front")
+    with pytest.raises(RecordingError, match=r"carries PointCloud2.*cloud: \{min_z"):
+        _labels(bag, SCANS, tmp_path)
+    with pytest.raises(RecordingError, match="not PointCloud2: drop its 'cloud' entry"):
+        _labels(simulated / "recording.mcap", CLOUD, tmp_path)
