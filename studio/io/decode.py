@@ -32,6 +32,8 @@ __all__ = [
     "yaw_from_quat",
 ]
 
+FloatArray = NDArray[np.float64]
+
 
 def norm_frame(frame_id: Any) -> str:
     """Frame id without surrounding blanks and leading ``/`` (old ROS1 bags write ``/base_link``)."""
@@ -139,11 +141,21 @@ def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | No
 _POINT_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 
 
+_TIME_FIELDS = ("t", "time", "timestamp", "offset_time", "time_offset")
+"""Per-point time fields of common 3-D lidar drivers (Ouster ``t``, Velodyne ``time``, Hesai ``timestamp``,
+Livox ``offset_time``): integer types are nanoseconds after the stamp, floating ones seconds (after the
+stamp, or since the epoch when over 10⁶)."""
+
+
 def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan:
     """A PointCloud2 → the planar scan of its points in ``cloud``'s height band (see :class:`CloudSlice`).
 
     Unorganised and organised clouds (``height`` > 1, rows padded to ``row_step``), either byte order; NaN
-    points are left out. The beams are taken as measured at the header stamp (``time_increment`` 0).
+    points are left out. With a per-point time field (:data:`_TIME_FIELDS`) of a spinning lidar, the scan
+    starts at the bearing measured first and turns the way the lidar turned, each beam timed by the
+    rotation (``time_increment``), so a moving robot's sweep is undone as a 2-D scanner's is; otherwise
+    (no time field, or times that do not follow the bearing, as a non-repetitive scan pattern's) the beams
+    start at -180° and are taken at the header stamp.
     """
     try:
         stamp = stamp_ns_of(msg, stamp_ns)
@@ -152,11 +164,12 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
         missing = [c for c in "xyz" if c not in fields]
         if missing:
             raise ValueError(f"no {'/'.join(missing)} field (it has: {', '.join(fields) or 'none'})")
+        names = [*"xyz", *[t for t in _TIME_FIELDS if t in fields][:1]]
         step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
         row_step = int(getattr(msg, "row_step", 0) or width * step)
         big = bool(getattr(msg, "is_bigendian", False))
         formats = []
-        for c in "xyz":
+        for c in names:
             off, dt = fields[c]
             if dt not in _POINT_TYPES:
                 raise ValueError(f"field {c} has the unknown datatype {dt}")
@@ -172,12 +185,7 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
                 f"data holds {len(data)} bytes, {width}×{height} points need {height * row_step}"
             )
         dtype = np.dtype(
-            {
-                "names": list("xyz"),
-                "formats": formats,
-                "offsets": [fields[c][0] for c in "xyz"],
-                "itemsize": step,
-            }
+            {"names": names, "formats": formats, "offsets": [fields[c][0] for c in names], "itemsize": step}
         )
         rows = (
             [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
@@ -189,15 +197,64 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable point cloud: {exc}") from None
     r = np.hypot(x, y)
-    keep = np.isfinite(r) & np.isfinite(z) & (z >= cloud.min_z) & (z <= cloud.max_z) & (r >= cloud.range_min)
+    seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min)
+    keep = seen & (z >= cloud.min_z) & (z <= cloud.max_z)
+    az, r = np.arctan2(y[keep], x[keep]), r[keep]
     n = max(round(360.0 / cloud.step_deg), 1)
     da = 2.0 * math.pi / n
+    # beam k is centred on ``start + turn·k·da`` and measured ``t0_s + k·beam_s`` after the stamp; the
+    # sweep is read off all the cloud's returns (its start does not hang on which are in the band)
+    start, turn, t0_s, beam_s = -math.pi + 0.5 * da, 1.0, 0.0, 0.0
+    if len(names) == 4 and np.count_nonzero(seen) >= 8:
+        t = _point_times(pts[names[3]][seen], fields[names[3]][1], stamp)
+        sweep = _sweep(np.arctan2(y[seen], x[seen]), t) if t is not None else None
+        if sweep is not None:
+            start, turn, t0_s, rate = sweep
+            beam_s = da / rate
+    beam = np.floor(np.mod(turn * (az - start) + 0.5 * da, 2.0 * math.pi) / da).astype(np.int64) % n
     ranges = np.full(n, np.inf)
-    beam = np.floor((np.arctan2(y[keep], x[keep]) + math.pi) / da).astype(np.int64) % n
-    np.minimum.at(ranges, beam, r[keep])
+    np.minimum.at(ranges, beam, r)
     ranges[~np.isfinite(ranges)] = np.nan
     rmax = float(np.finfo(np.float32).max)
-    return LaserScan(stamp, frame, -math.pi + 0.5 * da, da, ranges.astype(np.float32), cloud.range_min, rmax)
+    first = stamp + round(t0_s * 1e9)
+    return LaserScan(
+        first, frame, start, turn * da, ranges.astype(np.float32), cloud.range_min, rmax, None, beam_s
+    )
+
+
+def _point_times(raw: NDArray[Any], datatype: int, stamp_ns: int) -> FloatArray | None:
+    """Per-point times, seconds after the header stamp (see :data:`_TIME_FIELDS`), or None if not finite."""
+    if datatype in (7, 8):
+        t = raw.astype(np.float64)
+        if not np.isfinite(t).all():
+            return None
+        if len(t) and float(np.median(np.abs(t))) > 1e6:  # since the epoch
+            t = t - stamp_ns * 1e-9
+        return t
+    return raw.astype(np.float64) * 1e-9
+
+
+_MIN_TURN_HZ, _MAX_TURN_HZ = 1.0, 50.0  # a spinning lidar turns at these rates
+_TURN_FIT_RAD = 0.05  # ... and its bearings follow the time to within this (rms, radians)
+
+
+def _sweep(az: FloatArray, t: FloatArray) -> tuple[float, float, float, float] | None:
+    """How a spinning lidar swept its bearings ``az`` at times ``t`` (s after the stamp): the bearing and
+    time of its first return, its direction (+1 counter-clockwise) and rate (rad/s); None unless the
+    bearings follow the time as a rotation between :data:`_MIN_TURN_HZ` and :data:`_MAX_TURN_HZ` does."""
+    order = np.argsort(t, kind="stable")
+    ts, unwrapped = t[order], np.unwrap(az[order])
+    span = float(ts[-1] - ts[0])
+    if span <= 0:
+        return None
+    slope, icpt = np.polyfit(ts - ts[0], unwrapped, 1)
+    rate = abs(float(slope))
+    if not 2 * math.pi * _MIN_TURN_HZ <= rate <= 2 * math.pi * _MAX_TURN_HZ:
+        return None
+    resid = unwrapped - (icpt + slope * (ts - ts[0]))
+    if float(np.sqrt(np.mean(resid**2))) > _TURN_FIT_RAD:
+        return None
+    return float(icpt), 1.0 if slope > 0 else -1.0, float(ts[0]), rate
 
 
 def image_format(data: bytes) -> str:

@@ -418,3 +418,55 @@ def test_bad_point_clouds_are_one_clear_error() -> None:
         decode_scan(odd, cloud=band)
     with pytest.raises(ValueError, match="min_z must be below max_z"):
         CloudSlice(min_z=0.3, max_z=-0.3)
+
+
+def _spinning_cloud(times: np.ndarray, az: np.ndarray, field: str, datatype: int, fmt: str) -> NS:
+    """A cloud of one return per bearing ``az`` (3 m away, in the band) timed ``times`` (raw field values)."""
+    dtype = np.dtype({"names": ["x", "y", "z", field], "formats": ["<f4", "<f4", "<f4", fmt],
+                      "offsets": [0, 4, 8, 16], "itemsize": 24})  # fmt: skip
+    rec = np.zeros(len(az), dtype)
+    rec["x"], rec["y"], rec[field] = 3 * np.cos(az), 3 * np.sin(az), times
+    fields = [NS(name=c, offset=o, datatype=7, count=1) for c, o in (("x", 0), ("y", 4), ("z", 8))]
+    fields.append(NS(name=field, offset=16, datatype=datatype, count=1))
+    return NS(
+        header=NS(stamp=_stamp(T0), frame_id="lidar"), height=1, width=len(az), fields=fields,
+        is_bigendian=False, point_step=24, row_step=24 * len(az), data=rec.tobytes(), is_dense=True,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("field", "datatype", "fmt", "unit"),
+    [("t", 6, "<u4", "ns"), ("time", 7, "<f4", "s"), ("timestamp", 8, "<f8", "epoch")],
+)
+@pytest.mark.parametrize("turn", [1.0, -1.0])
+def test_a_spinning_lidar_s_cloud_is_timed_beam_by_beam(
+    field: str, datatype: int, fmt: str, unit: str, turn: float
+) -> None:
+    """Ouster (``t``, ns), Velodyne (``time``, s; stamped at the sweep's end) and Hesai (``timestamp``,
+    epoch s) clouds: the scan starts where the lidar did, turns its way, each beam at its time."""
+    from studio.io.base import CloudSlice
+
+    k = np.arange(1800)
+    az = np.mod(1.0 + turn * k * 2 * np.pi / 1800 + np.pi, 2 * np.pi) - np.pi  # one turn from 57° on
+    t = (k - (1800 if unit == "s" else 0)) * (0.1 / 1800)  # 10 Hz; a Velodyne stamps the sweep's end
+    raw = {"ns": np.round(t * 1e9), "s": t, "epoch": T0 * 1e-9 + t}[unit]
+    scan = decode_scan(
+        _spinning_cloud(raw, az, field, datatype, fmt), cloud=CloudSlice(-0.3, 0.3, step_deg=0.5)
+    )
+    assert np.sign(scan.angle_increment) == turn
+    assert scan.time_increment == pytest.approx(0.1 / 720, rel=1e-3)
+    beam_t = scan.stamp_ns * 1e-9 + np.arange(len(scan)) * scan.time_increment
+    beam_a = scan.angles()
+    for j in (0, 450, 1700):  # a point's beam lies at its bearing and was measured at its time
+        i = int(np.argmin(np.abs(np.angle(np.exp(1j * (beam_a - az[j]))))))
+        assert abs(beam_t[i] - (T0 * 1e-9 + t[j])) < 0.1 / 720
+        assert scan.valid()[i]
+    # times that do not follow the bearing (a non-repetitive pattern): untimed, from -180°
+    rng = np.random.default_rng(1)
+    shuffled = decode_scan(
+        _spinning_cloud(rng.permutation(raw), az, field, datatype, fmt),
+        cloud=CloudSlice(-0.3, 0.3, step_deg=0.5),
+    )
+    assert shuffled.time_increment == 0.0
+    assert shuffled.stamp_ns == T0
+    assert shuffled.angle_min == pytest.approx(-np.pi + np.radians(0.25))
