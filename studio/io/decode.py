@@ -187,12 +187,14 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
         dtype = np.dtype(
             {"names": names, "formats": formats, "offsets": [fields[c][0] for c in names], "itemsize": step}
         )
-        rows = (
-            [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
-            if height and width
-            else [np.zeros(0, dtype)]
-        )
-        pts = np.concatenate(rows)
+        if not height or not width:
+            pts = np.zeros(0, dtype)
+        elif row_step == width * step:  # rows not padded: one view
+            pts = np.frombuffer(data, dtype=dtype, count=width * height)
+        else:
+            pts = np.concatenate(
+                [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
+            )
         x, y, z = (pts[c].astype(np.float64) for c in "xyz")
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable point cloud: {exc}") from None
@@ -207,9 +209,14 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     start, turn, t0_s, beam_s = -math.pi + 0.5 * da, 1.0, 0.0, 0.0
     if len(names) == 4 and np.count_nonzero(seen) >= 8:
         t = _point_times(pts[names[3]][seen], fields[names[3]][1], stamp)
-        sweep = _sweep(np.arctan2(y[seen], x[seen]), t) if t is not None else None
-        if sweep is not None:
-            start, turn, t0_s, rate = sweep
+        # a few thousand returns tell the rotation; the sweep starts at the first of all
+        m = int(np.count_nonzero(seen))
+        pick = np.arange(0, m, max(m // _SWEEP_POINTS, 1))
+        sweep = _sweep(np.arctan2(y[seen][pick], x[seen][pick]), t[pick]) if t is not None else None
+        if sweep is not None and t is not None:
+            start, turn, t_ref, rate = sweep
+            t0_s = float(t.min())
+            start += turn * rate * (t0_s - t_ref)
             beam_s = da / rate
     beam = np.floor(np.mod(turn * (az - start) + 0.5 * da, 2.0 * math.pi) / da).astype(np.int64) % n
     ranges = np.full(n, np.inf)
@@ -234,6 +241,7 @@ def _point_times(raw: NDArray[Any], datatype: int, stamp_ns: int) -> FloatArray 
     return raw.astype(np.float64) * 1e-9
 
 
+_SWEEP_POINTS = 4096  # the rotation is read off about this many of a cloud's returns
 _MIN_TURN_HZ, _MAX_TURN_HZ = 1.0, 50.0  # a spinning lidar turns at these rates
 _TURN_FIT_RAD = 0.05  # ... and its bearings follow the time to within this (rms, radians)
 
