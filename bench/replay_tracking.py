@@ -447,6 +447,13 @@ def main() -> None:
         help=f"switch these offline tracking stages off (ablation): {', '.join(STAGES)}",
     )
     ap.add_argument(
+        "--min-walk",
+        type=float,
+        default=None,
+        metavar="M",
+        help="the walk gate of laser-only labels (LabelOptions.min_walk_m; default as studio label)",
+    )
+    ap.add_argument(
         "--likelihood",
         action="store_true",
         help="compare how well our association and the ground truth's fit the tracker's model",
@@ -455,6 +462,8 @@ def main() -> None:
     if args.laser_step is not None and not args.laser_step > 0:
         ap.error(f"--laser-step must be > 0 degrees, got {args.laser_step}")
     options = LabelOptions()
+    if args.min_walk is not None:
+        options = replace(options, min_walk_m=args.min_walk)
     if args.without:
         options = replace(options, tracking=replace(options.tracking, **dict.fromkeys(args.without)))
     total: Counter[str] = Counter()
