@@ -38,30 +38,35 @@ class CloudSlice:
     """How a 3-D lidar's point cloud (sensor_msgs/PointCloud2) becomes a planar scan for the leg detector.
 
     The points between ``min_z`` and ``max_z`` (in the cloud's own frame) are projected onto its x–y plane
-    and binned by bearing into beams ``step_deg`` apart; each beam keeps the nearest point's range (an empty
-    beam is NaN: no return), as ``pointcloud_to_laserscan`` does. For a lidar ``h`` metres above the
+    and binned by bearing into beams ``step_deg`` apart; each beam keeps the nearest point's range, as
+    ``pointcloud_to_laserscan`` does. An empty beam is NaN (no return), unless it is one of at most two
+    between returns of one surface (the lidar's columns lie farther apart than the beams): those are
+    filled in. For a lidar ``h`` metres above the
     floor, legs are the band ``0.2 - h`` to ``0.6 - h``.
 
     Attributes:
         min_z, max_z: the height band, metres in the cloud's frame; ``min_z < max_z``.
-        step_deg: angle between the virtual scan's beams, degrees, in (0.05, 5].
+        step_deg: angle between the virtual scan's beams, degrees, in (0.05, 5]; None: an organised
+            cloud's column spacing (360° / its width), else 0.25°.
         range_min: points nearer than this to the lidar's axis are left out (the robot's own body), m.
     """
 
     min_z: float
     max_z: float
-    step_deg: float = 0.25
+    step_deg: float | None = None
     range_min: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("min_z", "max_z", "step_deg", "range_min"):
             v = getattr(self, name)
+            if v is None and name == "step_deg":
+                continue
             if isinstance(v, bool) or not isinstance(v, int | float | np.floating) or not np.isfinite(v):
                 raise ValueError(f"cloud {name} must be a finite number, got {v!r}")
             object.__setattr__(self, name, float(v))
         if not self.min_z < self.max_z:
             raise ValueError(f"cloud min_z must be below max_z, got {self.min_z} and {self.max_z}")
-        if not 0.05 < self.step_deg <= 5.0:
+        if self.step_deg is not None and not 0.05 < self.step_deg <= 5.0:
             raise ValueError(f"cloud step_deg must be in (0.05, 5] degrees, got {self.step_deg}")
         if self.range_min < 0:
             raise ValueError(f"cloud range_min must be >= 0, got {self.range_min}")

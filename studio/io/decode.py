@@ -202,7 +202,7 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min)
     keep = seen & (z >= cloud.min_z) & (z <= cloud.max_z)
     az, r = np.arctan2(y[keep], x[keep]), r[keep]
-    n = max(round(360.0 / cloud.step_deg), 1)
+    n = max(round(360.0 / _cloud_step_deg(cloud, width, height)), 1)
     da = 2.0 * math.pi / n
     # beam k is centred on ``start + turn·k·da`` and measured ``t0_s + k·beam_s`` after the stamp; the
     # sweep is read off all the cloud's returns (its start does not hang on which are in the band)
@@ -222,11 +222,45 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     ranges = np.full(n, np.inf)
     np.minimum.at(ranges, beam, r)
     ranges[~np.isfinite(ranges)] = np.nan
+    _fill_holes(ranges)
     rmax = float(np.finfo(np.float32).max)
     first = stamp + round(t0_s * 1e9)
     return LaserScan(
         first, frame, start, turn * da, ranges.astype(np.float32), cloud.range_min, rmax, None, beam_s
     )
+
+
+def _cloud_step_deg(cloud: CloudSlice, width: int, height: int) -> float:
+    """The virtual scan's beam step: ``cloud.step_deg``, else an organised cloud's column spacing (its rows
+    are rings of ``width`` returns around the lidar), else 0.25°."""
+    if cloud.step_deg is not None:
+        return cloud.step_deg
+    if height > 1 and width >= 72:
+        return float(np.clip(360.0 / width, 0.05, 5.0))
+    return _DEFAULT_CLOUD_STEP_DEG
+
+
+_DEFAULT_CLOUD_STEP_DEG = 0.25
+_HOLE_BEAMS = 2  # empty beams between two returns of one surface that are filled in
+_HOLE_JUMP_M, _HOLE_JUMP_REL = 0.05, 0.03  # ... when the two ranges differ by at most this + share of range
+
+
+def _fill_holes(ranges: FloatArray) -> None:
+    """Fill in place runs of up to :data:`_HOLE_BEAMS` empty beams whose neighbours lie on one surface
+    (ranges within :data:`_HOLE_JUMP_M` + :data:`_HOLE_JUMP_REL` of the range), linearly: a lidar whose
+    columns lie farther apart than the scan's beams leaves such holes in every surface, and the leg detector
+    reads missing returns as dark or thin objects."""
+    n = len(ranges)
+    idx = np.flatnonzero(np.isfinite(ranges))
+    if len(idx) < 2:
+        return
+    ends = np.r_[idx[1:], idx[0] + n]  # the beams go all around: the last one's neighbour is the first
+    for i, j in zip(idx, ends, strict=True):
+        if not 1 < j - i <= _HOLE_BEAMS + 1:
+            continue
+        a, b = float(ranges[i]), float(ranges[j % n])
+        if abs(a - b) <= _HOLE_JUMP_M + _HOLE_JUMP_REL * min(a, b):
+            ranges[np.arange(i + 1, j) % n] = a + (b - a) * np.arange(1, j - i) / (j - i)
 
 
 def _point_times(raw: NDArray[Any], datatype: int, stamp_ns: int) -> FloatArray | None:

@@ -12,7 +12,7 @@ Example::
       - topic: /scan_front
         pose: {x: 0.35, y: 0.0, z: 0.30, yaw: 0.0}
       - topic: /velodyne_points       # a 3-D lidar (PointCloud2), 0.8 m up: its points 0.2-0.6 m
-        cloud: {min_z: -0.6, max_z: -0.2, step_deg: 0.25}  # above the floor make a planar scan
+        cloud: {min_z: -0.6, max_z: -0.2}  # above the floor make a planar scan
     sync: {max_dt_s: 0.05, camera_latency_s: 0.0}
 
 Poses are metres and radians in ``base_frame``; missing pose keys are 0. A sensor without ``pose`` takes
@@ -21,7 +21,7 @@ lens centres of a dual-fisheye camera at ``(±b, 0, 0)`` in the camera frame
 (:class:`~studio.geometry.equirect.EquirectCamera`); it is written only when non-zero. A laser entry
 with ``cloud`` reads a PointCloud2 topic and slices it into a planar scan
 (:class:`~studio.io.base.CloudSlice`: ``min_z``/``max_z`` metres in the cloud's frame, ``step_deg``
-default 0.25, ``range_min`` default 0.1 m).
+default an organised cloud's column spacing, else 0.25, ``range_min`` default 0.1 m).
 """
 
 from __future__ import annotations
@@ -191,7 +191,11 @@ class Rig:
             if laser.pose is not None:
                 entry["pose"] = _pose_dict(laser.pose)
             if laser.cloud is not None:
-                entry["cloud"] = {k: float(getattr(laser.cloud, k)) for k in _CLOUD_KEYS}
+                entry["cloud"] = {
+                    k: float(getattr(laser.cloud, k))
+                    for k in _CLOUD_KEYS
+                    if getattr(laser.cloud, k) is not None
+                }
             lasers.append(entry)
         d["lasers"] = lasers
         d["sync"] = {

@@ -84,7 +84,7 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         if c is not None:
             line += (
                 f", a 3-D lidar's point clouds sliced into a planar scan (points {c.min_z:g} to "
-                f"{c.max_z:g} m in its frame, beams {c.step_deg:g}° apart, the nearest point of each)"
+                f"{c.max_z:g} m in its frame, the nearest of each bearing)"
             )
         step = beam_deg.get(las.topic)
         if step is not None:

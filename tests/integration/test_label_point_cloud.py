@@ -44,25 +44,31 @@ POINT = np.dtype(  # an Ouster-like layout: `t` is each point's time after the s
 )
 
 
-def cloud_of(scan: Any, store: Any, rng: np.random.Generator) -> Any:
-    """A PointCloud2 holding ``scan``'s returns in the band and a 3-D lidar's other points outside it."""
-    r = np.asarray(scan.ranges, dtype=np.float64)
-    a = scan.angle_min + scan.angle_increment * np.arange(len(r))
-    t = np.round(np.arange(len(r)) * scan.time_increment * 1e9)
-    ok = np.isfinite(r) & (r >= scan.range_min) & (r <= scan.range_max)
-    r, a, t = r[ok], a[ok], t[ok]
-    n = len(r)
-    pts = np.zeros((4, n), POINT)  # one array: concatenating padded records may drop the padding
+def cloud_of(scan: Any, store: Any, rng: np.random.Generator, *, organised: bool = True) -> Any:
+    """A PointCloud2 holding ``scan``'s returns in the band and a 3-D lidar's other points outside it.
+
+    Organised: four rings of one column per beam step all around (the scanner's beams, then NaN where it
+    does not look): the band, nearer points above and below it, points on the robot, rays without a
+    return. Unorganised: one row of the points that are there, in that order.
+    """
+    cols = round(2 * np.pi / abs(scan.angle_increment))
+    r = np.full(cols, np.nan)
+    r[: len(scan.ranges)] = scan.ranges
+    r[~((r >= scan.range_min) & (r <= scan.range_max))] = np.nan
+    a = scan.angle_min + scan.angle_increment * np.arange(cols)
+    t = np.round(np.arange(cols) * scan.time_increment * 1e9)
+    pts = np.zeros((4, cols), POINT)  # one array: concatenating padded records may drop the padding
     band, other, body, blank = pts
-    band["x"], band["y"], band["z"] = r * np.cos(a), r * np.sin(a), rng.uniform(-0.12, 0.12, n)
-    # the same bearings above and below the band, nearer than the returns
+    band["x"], band["y"], band["z"] = r * np.cos(a), r * np.sin(a), rng.uniform(-0.12, 0.12, cols)
     other["x"], other["y"] = 0.5 * r * np.cos(a), 0.5 * r * np.sin(a)
-    other["z"] = np.where(np.arange(n) % 2 == 0, -0.4, 0.9)
+    other["z"] = np.where(np.arange(cols) % 2 == 0, -0.4, 0.9)
     body["x"], body["y"] = 0.05 * np.cos(a), 0.05 * np.sin(a)  # on the robot itself, inside range_min
-    for c in "xyz":  # an organised cloud's rays without a return
+    for c in "xyz":
         blank[c] = np.nan
     for row in pts:
         row["t"] = t
+    if not organised:
+        pts = pts[:, np.isfinite(r)][:3].reshape(1, -1)
     field = store.types["sensor_msgs/msg/PointField"]
     fields = [
         field(name=name, offset=off, datatype=dt, count=1)
@@ -77,18 +83,18 @@ def cloud_of(scan: Any, store: Any, rng: np.random.Generator) -> Any:
     ]
     return store.types["sensor_msgs/msg/PointCloud2"](
         header=scan.header,
-        height=len(pts),
-        width=n,
+        height=pts.shape[0],
+        width=pts.shape[1],
         fields=fields,
         is_bigendian=False,
         point_step=POINT.itemsize,
-        row_step=n * POINT.itemsize,
+        row_step=pts.shape[1] * POINT.itemsize,
         data=np.frombuffer(pts.tobytes(), np.uint8),
         is_dense=False,
     )
 
 
-def as_point_clouds(src: Path, dst: Path, topic: str) -> None:
+def as_point_clouds(src: Path, dst: Path, topic: str, *, organised: bool = True) -> None:
     """``src`` (ROS2 MCAP) written again with ``topic``'s scans as point clouds (:func:`cloud_of`)."""
     from rosbags.highlevel import AnyReader
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -106,7 +112,7 @@ def as_point_clouds(src: Path, dst: Path, topic: str) -> None:
             )
         for c, t, raw in reader.messages():
             if c.topic == topic:
-                msg = cloud_of(reader.deserialize(raw, c.msgtype), store, rng)
+                msg = cloud_of(reader.deserialize(raw, c.msgtype), store, rng, organised=organised)
                 raw = store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2")
             writer.write(conns[c.id], t, raw)
 
@@ -171,14 +177,16 @@ def test_a_spinning_lidar_s_timed_clouds_label_as_its_sweeping_scans(sweeping: P
     _agree(_labels(sweeping / "recording.mcap", SCANS, tmp_path), _labels(bag, CLOUD, tmp_path))
 
 
+@pytest.mark.parametrize("organised", [True, False])
 def test_point_clouds_label_as_the_scans_they_contain(
-    simulated: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    simulated: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], organised: bool
 ) -> None:
+    """Organised (rings of columns all around: the beams are the columns) or not (sliced at 0.25°)."""
     from studio.cli import main
     from studio.pipeline.export import dataset_card
 
     bag = tmp_path / "clouds"
-    as_point_clouds(simulated / "recording.mcap", bag, "/scan_front")
+    as_point_clouds(simulated / "recording.mcap", bag, "/scan_front", organised=organised)
     scans = _labels(simulated / "recording.mcap", SCANS, tmp_path)
     run = _run(bag, CLOUD, tmp_path)
     clouds = {f.stamp_ns: np.array([(p.x, p.y) for p in f.people]).reshape(-1, 2) for f in run.labels}

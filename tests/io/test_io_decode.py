@@ -470,3 +470,30 @@ def test_a_spinning_lidar_s_cloud_is_timed_beam_by_beam(
     assert shuffled.time_increment == 0.0
     assert shuffled.stamp_ns == T0
     assert shuffled.angle_min == pytest.approx(-np.pi + np.radians(0.25))
+
+
+def test_a_cloud_s_beams_follow_its_columns_and_holes_in_a_surface_are_filled() -> None:
+    """An organised cloud's rows are rings: its beams are its columns (0.4° here). An unorganised one is
+    sliced at 0.25°, and the empty beams a 0.4° lidar leaves in a wall are filled in; a gap between two
+    surfaces at different ranges is not."""
+    from studio.io.base import CloudSlice
+
+    az = np.radians(np.arange(900) * 0.4 - 180.0)
+    r = np.where(np.abs(np.degrees(az) - 30) < 5, 2.0, 4.0)  # a wall at 4 m, a post at 2 m from 25° to 35°
+    ring = np.stack([r * np.cos(az), r * np.sin(az), np.zeros_like(az)], axis=1)
+    above = ring + np.array([0.0, 0.0, 1.0])  # a second ring, above the band
+    organised = _cloud_msg(np.concatenate([ring, above]), rows=2)
+    band = CloudSlice(min_z=-0.3, max_z=0.3)
+    scan = decode_scan(organised, cloud=band)
+    assert len(scan) == 900
+    assert scan.angle_increment == pytest.approx(np.radians(0.4))
+    assert scan.valid().all()
+    loose = decode_scan(_cloud_msg(ring), cloud=band)
+    assert len(loose) == 1440
+    assert loose.valid().all()  # every 0.25° beam: returns, or filled in between two
+    np.testing.assert_allclose(loose.ranges[np.abs(np.degrees(loose.angles()) - 30) < 4.5], 2.0, atol=1e-6)
+    rng = np.hypot(*loose.points().T)
+    near_edge = np.abs(np.abs(np.degrees(loose.angles()) - 30) - 5) < 0.3
+    assert ((np.abs(rng[near_edge] - 2) < 1e-6) | (np.abs(rng[near_edge] - 4) < 1e-6)).all()  # no ramp
+    fixed = decode_scan(_cloud_msg(ring), cloud=CloudSlice(min_z=-0.3, max_z=0.3, step_deg=0.1))
+    assert (~fixed.valid()).sum() > 1000  # 0.1° beams: holes of three are not filled
