@@ -143,8 +143,8 @@ _POINT_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8
 
 _TIME_FIELDS = ("t", "time", "timestamp", "offset_time", "time_offset")
 """Per-point time fields of common 3-D lidar drivers (Ouster ``t``, Velodyne ``time``, Hesai ``timestamp``,
-Livox ``offset_time``): integer types are nanoseconds after the stamp, floating ones seconds (after the
-stamp, or since the epoch when over 10⁶)."""
+Livox ``offset_time``): integer types are nanoseconds, floating ones seconds, after the stamp or (when over
+10⁶ s) since the epoch."""
 
 
 def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan:
@@ -264,15 +264,14 @@ def _fill_holes(ranges: FloatArray) -> None:
 
 
 def _point_times(raw: NDArray[Any], datatype: int, stamp_ns: int) -> FloatArray | None:
-    """Per-point times, seconds after the header stamp (see :data:`_TIME_FIELDS`), or None if not finite."""
-    if datatype in (7, 8):
-        t = raw.astype(np.float64)
-        if not np.isfinite(t).all():
-            return None
-        if len(t) and float(np.median(np.abs(t))) > 1e6:  # since the epoch
-            t = t - stamp_ns * 1e-9
-        return t
-    return raw.astype(np.float64) * 1e-9
+    """Per-point times, seconds after the header stamp (see :data:`_TIME_FIELDS`; times since the epoch
+    are told by their size), or None where they are not finite or not within a second of the stamp."""
+    t = raw.astype(np.float64) * (1.0 if datatype in (7, 8) else 1e-9)
+    if not len(t) or not np.isfinite(t).all():
+        return None
+    if float(np.median(np.abs(t))) > 1e6:  # since the epoch
+        t = t - stamp_ns * 1e-9
+    return t if float(np.abs(t).max()) <= 1.0 else None
 
 
 _SWEEP_POINTS = 4096  # the rotation is read off about this many of a cloud's returns

@@ -497,3 +497,20 @@ def test_a_cloud_s_beams_follow_its_columns_and_holes_in_a_surface_are_filled() 
     assert ((np.abs(rng[near_edge] - 2) < 1e-6) | (np.abs(rng[near_edge] - 4) < 1e-6)).all()  # no ramp
     fixed = decode_scan(_cloud_msg(ring), cloud=CloudSlice(min_z=-0.3, max_z=0.3, step_deg=0.1))
     assert (~fixed.valid()).sum() > 1000  # 0.1° beams: holes of three are not filled
+
+
+def test_cloud_times_far_from_the_stamp_leave_the_beams_untimed() -> None:
+    """Times more than a second off the stamp (a driver's other clock) leave the beams untimed at the stamp
+    rather than stamp the scan elsewhere; times since the epoch are told by their size."""
+    from studio.io.base import CloudSlice
+
+    k = np.arange(720)
+    az = np.mod(k * 2 * np.pi / 720 + np.pi, 2 * np.pi) - np.pi
+    t = k * (0.1 / 720)
+    band = CloudSlice(-0.3, 0.3, step_deg=0.5)
+    off = decode_scan(_spinning_cloud(t + 5.0, az, "time", 7, "<f4"), cloud=band)
+    assert off.time_increment == 0.0
+    assert off.stamp_ns == T0
+    late = decode_scan(_spinning_cloud(T0 * 1e-9 + 3600 + t, az, "timestamp", 8, "<f8"), cloud=band)
+    assert late.time_increment == 0.0
+    assert late.stamp_ns == T0
