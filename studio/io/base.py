@@ -46,8 +46,9 @@ class CloudSlice:
 
     Attributes:
         min_z, max_z: the height band, metres in the cloud's frame; ``min_z < max_z``.
-        step_deg: angle between the virtual scan's beams, degrees, in (0.05, 5]; None: an organised
-            cloud's column spacing (360° / its width), else 0.25°.
+        step_deg: angle between the virtual scan's beams, degrees, in (0.05, 5]; None: the lidar's column
+            spacing, of an organised cloud (360° / its width) or read off the order of an unorganised
+            one's returns, else 0.25°.
         range_min: points nearer than this to the lidar's axis are left out (the robot's own body), m.
     """
 

@@ -202,7 +202,7 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min)
     keep = seen & (z >= cloud.min_z) & (z <= cloud.max_z)
     az, r = np.arctan2(y[keep], x[keep]), r[keep]
-    n = max(round(360.0 / _cloud_step_deg(cloud, width, height)), 1)
+    n = max(round(360.0 / _cloud_step_deg(cloud, width, height, x[seen], y[seen])), 1)
     da = 2.0 * math.pi / n
     # beam k is centred on ``start + turn·k·da`` and measured ``t0_s + k·beam_s`` after the stamp; the
     # sweep is read off all the cloud's returns (its start does not hang on which are in the band)
@@ -230,14 +230,28 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     )
 
 
-def _cloud_step_deg(cloud: CloudSlice, width: int, height: int) -> float:
-    """The virtual scan's beam step: ``cloud.step_deg``, else an organised cloud's column spacing (its rows
-    are rings of ``width`` returns around the lidar), else 0.25°."""
+def _cloud_step_deg(cloud: CloudSlice, width: int, height: int, x: FloatArray, y: FloatArray) -> float:
+    """The virtual scan's beam step: ``cloud.step_deg``; else an organised cloud's column spacing (its rows
+    are rings of ``width`` returns around the lidar); else an unorganised cloud's, read off the bearings of
+    its returns ``x, y`` in the order the driver wrote them: the bearing they sweep from one return to the
+    next, over the number of steps that change it by more than :data:`_SAME_COLUMN_DEG` (a spinning lidar
+    writes its returns column by column, the rings of one column at almost one bearing), when that is
+    between 0.1° and 1°; else 0.25°."""
     if cloud.step_deg is not None:
         return cloud.step_deg
     if height > 1 and width >= 72:
         return float(np.clip(360.0 / width, 0.05, 5.0))
+    d = np.abs(np.degrees(np.diff(np.arctan2(y, x))))
+    d = d[d < 2.0]  # consecutive returns of the sweep (not a jump to the next ring or sweep)
+    columns = int(np.count_nonzero(d > _SAME_COLUMN_DEG))
+    if columns >= 100:
+        step = float(d.sum()) / columns  # the bearing swept, over the columns it took
+        if 0.1 <= step <= 1.0:
+            return step
     return _DEFAULT_CLOUD_STEP_DEG
+
+
+_SAME_COLUMN_DEG = 0.02  # returns whose bearings differ by less are one column's
 
 
 _DEFAULT_CLOUD_STEP_DEG = 0.25

@@ -21,7 +21,7 @@ lens centres of a dual-fisheye camera at ``(±b, 0, 0)`` in the camera frame
 (:class:`~studio.geometry.equirect.EquirectCamera`); it is written only when non-zero. A laser entry
 with ``cloud`` reads a PointCloud2 topic and slices it into a planar scan
 (:class:`~studio.io.base.CloudSlice`: ``min_z``/``max_z`` metres in the cloud's frame, ``step_deg``
-default an organised cloud's column spacing, else 0.25, ``range_min`` default 0.1 m).
+default the lidar's column spacing, else 0.25, ``range_min`` default 0.1 m).
 """
 
 from __future__ import annotations

@@ -473,9 +473,9 @@ def test_a_spinning_lidar_s_cloud_is_timed_beam_by_beam(
 
 
 def test_a_cloud_s_beams_follow_its_columns_and_holes_in_a_surface_are_filled() -> None:
-    """An organised cloud's rows are rings: its beams are its columns (0.4° here). An unorganised one is
-    sliced at 0.25°, and the empty beams a 0.4° lidar leaves in a wall are filled in; a gap between two
-    surfaces at different ranges is not."""
+    """An organised cloud's rows are rings: its beams are its columns (0.4° here); an unorganised one written
+    column by column tells its spacing too. One in no order is sliced at 0.25°, and the empty beams a 0.4°
+    lidar leaves in a wall are filled in; a gap between two surfaces at different ranges is not."""
     from studio.io.base import CloudSlice
 
     az = np.radians(np.arange(900) * 0.4 - 180.0)
@@ -488,14 +488,17 @@ def test_a_cloud_s_beams_follow_its_columns_and_holes_in_a_surface_are_filled() 
     assert len(scan) == 900
     assert scan.angle_increment == pytest.approx(np.radians(0.4))
     assert scan.valid().all()
-    loose = decode_scan(_cloud_msg(ring), cloud=band)
+    in_order = decode_scan(_cloud_msg(ring), cloud=band)  # unorganised, written column by column
+    assert in_order.angle_increment == pytest.approx(np.radians(0.4))
+    shuffled = ring[np.random.default_rng(2).permutation(len(ring))]  # no order to read the columns off
+    loose = decode_scan(_cloud_msg(shuffled), cloud=band)
     assert len(loose) == 1440
     assert loose.valid().all()  # every 0.25° beam: returns, or filled in between two
     np.testing.assert_allclose(loose.ranges[np.abs(np.degrees(loose.angles()) - 30) < 4.5], 2.0, atol=1e-6)
     rng = np.hypot(*loose.points().T)
     near_edge = np.abs(np.abs(np.degrees(loose.angles()) - 30) - 5) < 0.3
     assert ((np.abs(rng[near_edge] - 2) < 1e-6) | (np.abs(rng[near_edge] - 4) < 1e-6)).all()  # no ramp
-    fixed = decode_scan(_cloud_msg(ring), cloud=CloudSlice(min_z=-0.3, max_z=0.3, step_deg=0.1))
+    fixed = decode_scan(_cloud_msg(shuffled), cloud=CloudSlice(min_z=-0.3, max_z=0.3, step_deg=0.1))
     assert (~fixed.valid()).sum() > 1000  # 0.1° beams: holes of three are not filled
 
 
@@ -514,3 +517,17 @@ def test_cloud_times_far_from_the_stamp_leave_the_beams_untimed() -> None:
     late = decode_scan(_spinning_cloud(T0 * 1e-9 + 3600 + t, az, "timestamp", 8, "<f8"), cloud=band)
     assert late.time_increment == 0.0
     assert late.stamp_ns == T0
+
+
+def test_an_unorganised_cloud_written_column_by_column_tells_its_column_spacing() -> None:
+    """16 rings fired 0.008° apart within each 0.4° column (a VLP-16 at 20 Hz), written column by column."""
+    from studio.io.base import CloudSlice
+
+    cols = np.arange(900) * 0.4 - 180.0
+    bearings = np.radians((cols[:, None] + np.arange(16)[None, :] * 0.008).reshape(-1))
+    el = np.tile(np.radians(np.linspace(-15, 15, 16)), 900)
+    pts = np.stack(
+        [4 * np.cos(el) * np.cos(bearings), 4 * np.cos(el) * np.sin(bearings), 4 * np.sin(el)], axis=1
+    )
+    scan = decode_scan(_cloud_msg(pts), cloud=CloudSlice(min_z=-0.5, max_z=0.5))
+    assert scan.angle_increment == pytest.approx(np.radians(0.4), rel=0.01)
