@@ -151,11 +151,13 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     """A PointCloud2 → the planar scan of its points in ``cloud``'s height band (see :class:`CloudSlice`).
 
     Unorganised and organised clouds (``height`` > 1, rows padded to ``row_step``), either byte order; NaN
-    points are left out. With a per-point time field (:data:`_TIME_FIELDS`) of a spinning lidar, the scan
-    starts at the bearing measured first and turns the way the lidar turned, each beam timed by the
-    rotation (``time_increment``), so a moving robot's sweep is undone as a 2-D scanner's is; otherwise
-    (no time field, or times that do not follow the bearing, as a non-repetitive scan pattern's) the beams
-    start at -180° and are taken at the header stamp.
+    points and (0, 0, 0) ones (many drivers' "no return") are left out. With a per-point time field
+    (:data:`_TIME_FIELDS`) of a spinning lidar, the scan starts at the bearing measured first and turns
+    the way the lidar turned, each beam timed by the rotation (``time_increment``), so a moving robot's
+    sweep is undone as a 2-D scanner's is; a full turn's last returns, half a beam short of its start, make
+    one beam more at the start's bearing (a turn later). Otherwise (no usable time field, or times that do
+    not follow the bearing, as a non-repetitive scan pattern's) the beams start at -180° and are taken at
+    the header stamp.
     """
     try:
         stamp = stamp_ns_of(msg, stamp_ns)
@@ -164,8 +166,16 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
         missing = [c for c in "xyz" if c not in fields]
         if missing:
             raise ValueError(f"no {'/'.join(missing)} field (it has: {', '.join(fields) or 'none'})")
-        names = [*"xyz", *[t for t in _TIME_FIELDS if t in fields][:1]]
         step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
+        # a time field is used when its type is known and it fits the point; without one, no timing
+        timed = [
+            t
+            for t in _TIME_FIELDS
+            if t in fields
+            and fields[t][1] in _POINT_TYPES
+            and 0 <= fields[t][0] <= step - np.dtype(_POINT_TYPES[fields[t][1]]).itemsize
+        ]
+        names = [*"xyz", *timed[:1]]
         row_step = int(getattr(msg, "row_step", 0) or width * step)
         big = bool(getattr(msg, "is_bigendian", False))
         formats = []
@@ -196,17 +206,21 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
                 [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
             )
         x, y, z = (pts[c].astype(np.float64) for c in "xyz")
-    except (AttributeError, TypeError, ValueError) as exc:
+    except (AttributeError, TypeError, ValueError, OverflowError) as exc:
         raise RecordingError(f"not a decodable point cloud: {exc}") from None
     r = np.hypot(x, y)
-    seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min)
+    # (0, 0, 0) is many drivers' "no return"
+    seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min) & (r > 0)
     keep = seen & (z >= cloud.min_z) & (z <= cloud.max_z)
     az, r = np.arctan2(y[keep], x[keep]), r[keep]
     n = max(round(360.0 / _cloud_step_deg(cloud, width, height, x[seen], y[seen])), 1)
     da = 2.0 * math.pi / n
     # beam k is centred on ``start + turn·k·da`` and measured ``t0_s + k·beam_s`` after the stamp; the
-    # sweep is read off all the cloud's returns (its start does not hang on which are in the band)
+    # sweep is read off all the cloud's returns (its start does not hang on which are in the band): it
+    # starts at the bearing of the first return; the returns half a beam short of it a full turn later make
+    # one beam more, ``n``, at the start's bearing again
     start, turn, t0_s, beam_s = -math.pi + 0.5 * da, 1.0, 0.0, 0.0
+    t_band = None
     if len(names) == 4 and np.count_nonzero(seen) >= 8:
         t = _point_times(pts[names[3]][seen], fields[names[3]][1], stamp)
         # a few thousand returns tell the rotation; the sweep starts at the first of all
@@ -214,12 +228,18 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
         pick = np.arange(0, m, max(m // _SWEEP_POINTS, 1))
         sweep = _sweep(np.arctan2(y[seen][pick], x[seen][pick]), t[pick]) if t is not None else None
         if sweep is not None and t is not None:
-            start, turn, t_ref, rate = sweep
-            t0_s = float(t.min())
-            start += turn * rate * (t0_s - t_ref)
+            turn, rate = sweep
+            i0 = int(np.argmin(t))
+            t0_s, start = float(t[i0]), float(np.arctan2(y[seen][i0], x[seen][i0]))
             beam_s = da / rate
-    beam = np.floor(np.mod(turn * (az - start) + 0.5 * da, 2.0 * math.pi) / da).astype(np.int64) % n
-    ranges = np.full(n, np.inf)
+            t_band = t[keep[seen]]
+    rel = np.mod(turn * (az - start) + 0.5 * da, 2.0 * math.pi)
+    beam = np.minimum(np.floor(rel / da).astype(np.int64), n - 1)
+    size = n
+    if t_band is not None:  # the end of the turn, just short of its start
+        size = n + 1
+        beam[(rel < 0.5 * da) & (t_band - t0_s > 0.5 * n * beam_s)] = n
+    ranges = np.full(size, np.inf)
     np.minimum.at(ranges, beam, r)
     ranges[~np.isfinite(ranges)] = np.nan
     _fill_holes(ranges)
@@ -242,9 +262,10 @@ def _cloud_step_deg(cloud: CloudSlice, width: int, height: int, x: FloatArray, y
     if height > 1 and width >= 72:
         return float(np.clip(360.0 / width, 0.05, 5.0))
     d = np.abs(np.degrees(np.diff(np.arctan2(y, x))))
-    d = d[d < 2.0]  # consecutive returns of the sweep (not a jump to the next ring or sweep)
+    near = d < 2.0  # consecutive returns of the sweep (not a jump to the next ring or sweep)
+    d = d[near]
     columns = int(np.count_nonzero(d > _SAME_COLUMN_DEG))
-    if columns >= 100:
+    if columns >= 100 and np.count_nonzero(near) >= 0.5 * len(near):  # in order, not shuffled
         step = float(d.sum()) / columns  # the bearing swept, over the columns it took
         if 0.1 <= step <= 1.0:
             return step
@@ -283,20 +304,23 @@ def _point_times(raw: NDArray[Any], datatype: int, stamp_ns: int) -> FloatArray 
     t = raw.astype(np.float64) * (1.0 if datatype in (7, 8) else 1e-9)
     if not len(t) or not np.isfinite(t).all():
         return None
+    if float(np.median(np.abs(t))) > 1e15:  # floating nanoseconds since the epoch (livox_ros_driver2)
+        t = t * 1e-9
     if float(np.median(np.abs(t))) > 1e6:  # since the epoch
         t = t - stamp_ns * 1e-9
-    return t if float(np.abs(t).max()) <= 1.0 else None
+    return t if float(np.abs(t).max()) <= _MAX_TIME_OFF_S else None
 
 
+_MAX_TIME_OFF_S = 2.0  # per-point times farther from the stamp are another clock's: the beams go untimed
 _SWEEP_POINTS = 4096  # the rotation is read off about this many of a cloud's returns
 _MIN_TURN_HZ, _MAX_TURN_HZ = 1.0, 50.0  # a spinning lidar turns at these rates
 _TURN_FIT_RAD = 0.05  # ... and its bearings follow the time to within this (rms, radians)
 
 
-def _sweep(az: FloatArray, t: FloatArray) -> tuple[float, float, float, float] | None:
-    """How a spinning lidar swept its bearings ``az`` at times ``t`` (s after the stamp): the bearing and
-    time of its first return, its direction (+1 counter-clockwise) and rate (rad/s); None unless the
-    bearings follow the time as a rotation between :data:`_MIN_TURN_HZ` and :data:`_MAX_TURN_HZ` does."""
+def _sweep(az: FloatArray, t: FloatArray) -> tuple[float, float] | None:
+    """How a spinning lidar swept its bearings ``az`` at times ``t`` (s after the stamp): its direction (+1
+    counter-clockwise) and rate (rad/s); None unless the bearings follow the time as a rotation between
+    :data:`_MIN_TURN_HZ` and :data:`_MAX_TURN_HZ` does."""
     order = np.argsort(t, kind="stable")
     ts, unwrapped = t[order], np.unwrap(az[order])
     span = float(ts[-1] - ts[0])
@@ -309,7 +333,7 @@ def _sweep(az: FloatArray, t: FloatArray) -> tuple[float, float, float, float] |
     resid = unwrapped - (icpt + slope * (ts - ts[0]))
     if float(np.sqrt(np.mean(resid**2))) > _TURN_FIT_RAD:
         return None
-    return float(icpt), 1.0 if slope > 0 else -1.0, float(ts[0]), rate
+    return 1.0 if slope > 0 else -1.0, rate
 
 
 def image_format(data: bytes) -> str:

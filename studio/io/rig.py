@@ -303,7 +303,12 @@ def parse_rig(data: Any, *, source: str = "rig") -> Rig:
             cloud = None
             if lm.get("cloud") is not None:
                 cm = c.mapping(lm["cloud"], f"{key}.cloud", _CLOUD_KEYS, ("min_z", "max_z"))
-                vals = {k: c.number(v, f"{key}.cloud.{k}") for k, v in cm.items()}
+                # step_deg: null (or left out) is the lidar's own column spacing
+                vals = {
+                    k: c.number(v, f"{key}.cloud.{k}")
+                    for k, v in cm.items()
+                    if not (k == "step_deg" and v is None)
+                }
                 try:
                     cloud = CloudSlice(**vals)
                 except ValueError as exc:

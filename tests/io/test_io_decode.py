@@ -457,10 +457,17 @@ def test_a_spinning_lidar_s_cloud_is_timed_beam_by_beam(
     assert scan.time_increment == pytest.approx(0.1 / 720, rel=1e-3)
     beam_t = scan.stamp_ns * 1e-9 + np.arange(len(scan)) * scan.time_increment
     beam_a = scan.angles()
-    for j in (0, 450, 1700):  # a point's beam lies at its bearing and was measured at its time
+    # a point's beam lies at its bearing and was measured at its time: at the start and halfway through the
+    # turn; its last returns, a full turn after the first and half a beam short of its bearing, make one
+    # beam more, at the first one's bearing
+    assert len(scan) == 721
+    for j in (0, 450):
         i = int(np.argmin(np.abs(np.angle(np.exp(1j * (beam_a - az[j]))))))
         assert abs(beam_t[i] - (T0 * 1e-9 + t[j])) < 0.1 / 720
         assert scan.valid()[i]
+    assert abs(np.angle(np.exp(1j * (beam_a[-1] - beam_a[0])))) < 1e-9
+    assert abs(beam_t[-1] - (T0 * 1e-9 + t[1799])) < 0.1 / 720
+    assert scan.valid()[-1]
     # times that do not follow the bearing (a non-repetitive pattern): untimed, from -180°
     rng = np.random.default_rng(1)
     shuffled = decode_scan(
@@ -531,3 +538,33 @@ def test_an_unorganised_cloud_written_column_by_column_tells_its_column_spacing(
     )
     scan = decode_scan(_cloud_msg(pts), cloud=CloudSlice(min_z=-0.5, max_z=0.5))
     assert scan.angle_increment == pytest.approx(np.radians(0.4), rel=0.01)
+
+
+def test_clouds_in_no_order_with_no_return_points_or_odd_fields_are_read_sensibly() -> None:
+    """A large cloud in no order is sliced at 0.25° (not at a spacing read off chance neighbours); (0, 0, 0)
+    points, many drivers' "no return", are never returns even with range_min 0 and do not spoil the timing;
+    a time field of an unknown type leaves the cloud untimed; a byte list out of range is one clear error."""
+    from studio.io.base import CloudSlice
+
+    band = CloudSlice(-5.0, 5.0)
+    for seed in range(3):
+        az = np.random.default_rng(seed).uniform(-np.pi, np.pi, 20000)
+        pts = np.stack([3 * np.cos(az), 3 * np.sin(az), np.zeros_like(az)], axis=1)
+        assert decode_scan(_cloud_msg(pts), cloud=band).angle_increment == pytest.approx(np.radians(0.25))
+    k = np.arange(1024)
+    az = np.mod(k * 2 * np.pi / 1024 + np.pi, 2 * np.pi) - np.pi
+    t = np.round(k * (0.1 / 1024) * 1e9)
+    msg = _spinning_cloud(t, az, "t", 6, "<u4")
+    rec = np.frombuffer(
+        msg.data,
+        np.dtype({"names": ["x", "y"], "formats": ["<f4", "<f4"], "offsets": [0, 4], "itemsize": 24}),
+    ).copy()
+    rec["x"][::3] = rec["y"][::3] = 0.0  # a third of the rays without a return
+    holes = NS(**{**msg.__dict__, "data": rec.tobytes()})
+    scan = decode_scan(holes, cloud=CloudSlice(-0.3, 0.3, range_min=0.0))
+    assert scan.time_increment > 0
+    assert np.nanmin(scan.ranges) == pytest.approx(3.0)  # the wall, never 0
+    odd = NS(**{**msg.__dict__, "fields": [*msg.fields[:3], NS(name="t", offset=16, datatype=11, count=1)]})
+    assert decode_scan(odd, cloud=band).time_increment == 0.0
+    with pytest.raises(RecordingError, match="not a decodable point cloud"):
+        decode_scan(NS(**{**msg.__dict__, "data": [300] * len(msg.data)}), cloud=band)

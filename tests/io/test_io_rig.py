@@ -74,6 +74,10 @@ def test_a_point_cloud_laser_round_trips_with_its_height_band(tmp_path: Path) ->
     assert (cloud.min_z, cloud.max_z, cloud.step_deg, cloud.range_min) == (-0.6, -0.2, None, 0.1)
     save_rig(rig, tmp_path / "again.yaml")
     assert load_rig(tmp_path / "again.yaml").lasers[0].cloud == cloud
+    p.write_text(
+        "base_frame: b\nlasers:\n  - topic: /points\n    cloud: {min_z: -0.6, max_z: -0.2, step_deg: null}\n"
+    )
+    assert load_rig(p).lasers[0].cloud == cloud  # null: the lidar's own columns, as left out
     plain = Rig(base_frame="b", lasers=(LaserConfig("/scan"),))
     assert plain.lasers[0].cloud is None
     assert "cloud" not in plain.to_dict()["lasers"][0]
@@ -141,6 +145,10 @@ def test_laser_only_rig_and_defaults(tmp_path: Path) -> None:
         ),
         ("base_frame: b\nlasers: [{topic: /v, cloud: {min_z: 0, max_z: 1, rings: 16}}]\n", "not a known key"),
         ("base_frame: b\nlasers: [{topic: /v, cloud: -0.3}]\n", r"'lasers\[0\].cloud' must be a mapping"),
+        (
+            "base_frame: b\nlasers: [{topic: /v, cloud: {min_z: null, max_z: 1}}]\n",
+            "cloud.min_z' must be a finite",
+        ),
     ],
 )
 def test_bad_rigs(tmp_path: Path, text: str, match: str) -> None:
