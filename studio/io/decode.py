@@ -150,8 +150,7 @@ Livox ``offset_time``): integer types are nanoseconds, floating ones seconds, af
 def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan:
     """A PointCloud2 → the planar scan of its points in ``cloud``'s height band (see :class:`CloudSlice`).
 
-    Unorganised and organised clouds (``height`` > 1, rows padded to ``row_step``), either byte order; NaN
-    points and (0, 0, 0) ones (many drivers' "no return") are left out. With a per-point time field
+    NaN points and (0, 0, 0) ones (many drivers' "no return") are left out. With a per-point time field
     (:data:`_TIME_FIELDS`) of a spinning lidar, the scan starts at the bearing measured first and turns
     the way the lidar turned, each beam timed by the rotation (``time_increment``), so a moving robot's
     sweep is undone as a 2-D scanner's is; a full turn's last returns, half a beam short of its start, make
@@ -159,61 +158,14 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     not follow the bearing, as a non-repetitive scan pattern's) the beams start at -180° and are taken at
     the header stamp.
     """
-    try:
-        stamp = stamp_ns_of(msg, stamp_ns)
-        frame = _frame_of(msg)
-        fields = {str(f.name): (int(f.offset), int(f.datatype)) for f in msg.fields}
-        missing = [c for c in "xyz" if c not in fields]
-        if missing:
-            raise ValueError(f"no {'/'.join(missing)} field (it has: {', '.join(fields) or 'none'})")
-        step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
-        # a time field is used when its type is known and it fits the point; without one, no timing
-        timed = [
-            t
-            for t in _TIME_FIELDS
-            if t in fields
-            and fields[t][1] in _POINT_TYPES
-            and 0 <= fields[t][0] <= step - np.dtype(_POINT_TYPES[fields[t][1]]).itemsize
-        ]
-        names = [*"xyz", *timed[:1]]
-        row_step = int(getattr(msg, "row_step", 0) or width * step)
-        big = bool(getattr(msg, "is_bigendian", False))
-        formats = []
-        for c in names:
-            off, dt = fields[c]
-            if dt not in _POINT_TYPES:
-                raise ValueError(f"field {c} has the unknown datatype {dt}")
-            code = np.dtype(_POINT_TYPES[dt])
-            if off < 0 or off + code.itemsize > step:
-                raise ValueError(f"field {c} (offset {off}) does not fit a {step}-byte point")
-            formats.append(code.newbyteorder(">" if big else "<"))
-        if width < 0 or height < 0 or row_step < width * step:
-            raise ValueError(f"bad layout: {width}×{height} points of {step} bytes, rows of {row_step}")
-        data = _bytes_of(msg.data)
-        if len(data) < height * row_step:
-            raise ValueError(
-                f"data holds {len(data)} bytes, {width}×{height} points need {height * row_step}"
-            )
-        dtype = np.dtype(
-            {"names": names, "formats": formats, "offsets": [fields[c][0] for c in names], "itemsize": step}
-        )
-        if not height or not width:
-            pts = np.zeros(0, dtype)
-        elif row_step == width * step:  # rows not padded: one view
-            pts = np.frombuffer(data, dtype=dtype, count=width * height)
-        else:
-            pts = np.concatenate(
-                [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
-            )
-        x, y, z = (pts[c].astype(np.float64) for c in "xyz")
-    except (AttributeError, TypeError, ValueError, OverflowError) as exc:
-        raise RecordingError(f"not a decodable point cloud: {exc}") from None
+    stamp = stamp_ns_of(msg, stamp_ns)
+    x, y, z, raw_t, t_type, width, height = _cloud_points(msg)
     r = np.hypot(x, y)
-    # (0, 0, 0) is many drivers' "no return"
     seen = np.isfinite(r) & np.isfinite(z) & (r >= cloud.range_min) & (r > 0)
-    keep = seen & (z >= cloud.min_z) & (z <= cloud.max_z)
-    az, r = np.arctan2(y[keep], x[keep]), r[keep]
-    n = max(round(360.0 / _cloud_step_deg(cloud, width, height, x[seen], y[seen])), 1)
+    xs, ys, zs, rs = x[seen], y[seen], z[seen], r[seen]
+    band = (zs >= cloud.min_z) & (zs <= cloud.max_z)
+    az, r = np.arctan2(ys[band], xs[band]), rs[band]
+    n = max(round(360.0 / _cloud_step_deg(cloud, width, height, xs, ys)), 1)
     da = 2.0 * math.pi / n
     # beam k is centred on ``start + turn·k·da`` and measured ``t0_s + k·beam_s`` after the stamp; the
     # sweep is read off all the cloud's returns (its start does not hang on which are in the band): it
@@ -221,18 +173,16 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     # one beam more, ``n``, at the start's bearing again
     start, turn, t0_s, beam_s = -math.pi + 0.5 * da, 1.0, 0.0, 0.0
     t_band = None
-    if len(names) == 4 and np.count_nonzero(seen) >= 8:
-        t = _point_times(pts[names[3]][seen], fields[names[3]][1], stamp)
+    t = _point_times(raw_t[seen], t_type, stamp) if raw_t is not None and len(xs) >= 8 else None
+    if t is not None:
         # a few thousand returns tell the rotation; the sweep starts at the first of all
-        m = int(np.count_nonzero(seen))
-        pick = np.arange(0, m, max(m // _SWEEP_POINTS, 1))
-        sweep = _sweep(np.arctan2(y[seen][pick], x[seen][pick]), t[pick]) if t is not None else None
-        if sweep is not None and t is not None:
+        pick = np.arange(0, len(t), max(len(t) // _SWEEP_POINTS, 1))
+        sweep = _sweep(np.arctan2(ys[pick], xs[pick]), t[pick])
+        if sweep is not None:
             turn, rate = sweep
             i0 = int(np.argmin(t))
-            t0_s, start = float(t[i0]), float(np.arctan2(y[seen][i0], x[seen][i0]))
-            beam_s = da / rate
-            t_band = t[keep[seen]]
+            t0_s, start, beam_s = float(t[i0]), math.atan2(ys[i0], xs[i0]), da / rate
+            t_band = t[band]
     rel = np.mod(turn * (az - start) + 0.5 * da, 2.0 * math.pi)
     beam = np.minimum(np.floor(rel / da).astype(np.int64), n - 1)
     size = n
@@ -246,16 +196,79 @@ def _slice_cloud(msg: Any, stamp_ns: int | None, cloud: CloudSlice) -> LaserScan
     rmax = float(np.finfo(np.float32).max)
     first = stamp + round(t0_s * 1e9)
     return LaserScan(
-        first, frame, start, turn * da, ranges.astype(np.float32), cloud.range_min, rmax, None, beam_s
+        first,
+        _frame_of(msg),
+        start,
+        turn * da,
+        ranges.astype(np.float32),
+        cloud.range_min,
+        rmax,
+        None,
+        beam_s,
     )
+
+
+def _cloud_points(
+    msg: Any,
+) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[Any] | None, int, int, int]:
+    """A PointCloud2's ``x, y, z`` (float64), its first usable time field's raw values and datatype (None,
+    0 without one: a time field of unknown type or place is left out), width and height. Unorganised and
+    organised clouds (rows padded to ``row_step``), either byte order.
+
+    Raises:
+        RecordingError: the message is not a decodable point cloud.
+    """
+    try:
+        fields = {str(f.name): (int(f.offset), int(f.datatype)) for f in msg.fields}
+        missing = [c for c in "xyz" if c not in fields]
+        if missing:
+            raise ValueError(f"no {'/'.join(missing)} field (it has: {', '.join(fields) or 'none'})")
+        step, width, height = int(msg.point_step), int(msg.width), int(msg.height)
+
+        def fits(name: str) -> bool:
+            off, dt = fields[name]
+            return dt in _POINT_TYPES and 0 <= off <= step - np.dtype(_POINT_TYPES[dt]).itemsize
+
+        for c in "xyz":
+            if fields[c][1] not in _POINT_TYPES:
+                raise ValueError(f"field {c} has the unknown datatype {fields[c][1]}")
+            if not fits(c):
+                raise ValueError(f"field {c} (offset {fields[c][0]}) does not fit a {step}-byte point")
+        names = [*"xyz", *[t for t in _TIME_FIELDS if t in fields and fits(t)][:1]]
+        row_step = int(getattr(msg, "row_step", 0) or width * step)
+        if width < 0 or height < 0 or row_step < width * step:
+            raise ValueError(f"bad layout: {width}×{height} points of {step} bytes, rows of {row_step}")
+        data = _bytes_of(msg.data)
+        if len(data) < height * row_step:
+            raise ValueError(
+                f"data holds {len(data)} bytes, {width}×{height} points need {height * row_step}"
+            )
+        big = bool(getattr(msg, "is_bigendian", False))
+        formats = [np.dtype(_POINT_TYPES[fields[c][1]]).newbyteorder(">" if big else "<") for c in names]
+        offsets = [fields[c][0] for c in names]
+        dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": step})
+        if not height or not width:
+            pts = np.zeros(0, dtype)
+        elif row_step == width * step:  # rows not padded: one view
+            pts = np.frombuffer(data, dtype=dtype, count=width * height)
+        else:
+            pts = np.concatenate(
+                [np.frombuffer(data, dtype=dtype, count=width, offset=r * row_step) for r in range(height)]
+            )
+    except (AttributeError, TypeError, ValueError, OverflowError) as exc:
+        raise RecordingError(f"not a decodable point cloud: {exc}") from None
+    x, y, z = (pts[c].astype(np.float64) for c in "xyz")
+    if len(names) == 4:
+        return x, y, z, pts[names[3]], fields[names[3]][1], width, height
+    return x, y, z, None, 0, width, height
 
 
 def _cloud_step_deg(cloud: CloudSlice, width: int, height: int, x: FloatArray, y: FloatArray) -> float:
     """The virtual scan's beam step: ``cloud.step_deg``; else an organised cloud's column spacing (its rows
-    are rings of ``width`` returns around the lidar); else an unorganised cloud's, read off the bearings of
-    its returns ``x, y`` in the order the driver wrote them: the bearing they sweep from one return to the
-    next, over the number of steps that change it by more than :data:`_SAME_COLUMN_DEG` (a spinning lidar
-    writes its returns column by column, the rings of one column at almost one bearing), when that is
+    are rings of ``width`` returns around the lidar); else an unorganised cloud's, read off the bearings
+    of its returns ``x, y`` in the order the driver wrote them: the bearing they sweep from one return
+    to the next, over the number of steps that change it by more than :data:`_SAME_COLUMN_DEG` (a spinning
+    lidar writes its returns column by column, the rings of one column at almost one bearing), when that is
     between 0.1° and 1°; else 0.25°."""
     if cloud.step_deg is not None:
         return cloud.step_deg
