@@ -53,9 +53,11 @@ def scan_frame(bag: Path) -> str:
     raise SystemExit(f"{bag}: no {TOPIC}")
 
 
-def thinned_bag(src: Path, dst: Path, every: int) -> Path:
+def thinned_bag(src: Path, dst: Path, every: int = 1, *, step_deg: float | None = None) -> Path:
     """A copy of the ROS1 bag ``src`` at ``dst`` whose ``LaserScan`` messages keep every ``every``-th beam
-    (the first, the ``every + 1``-th, …); all else is copied as it is."""
+    (the first, the ``every + 1``-th, …), or with ``step_deg`` the beam nearest to each multiple of
+    ``step_deg`` from the first (as a scanner with beams that far apart sees the scene, to within half the
+    recorded step); all else is copied as it is."""
     from rosbags.rosbag1 import Reader, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -68,14 +70,18 @@ def thinned_bag(src: Path, dst: Path, every: int) -> Path:
         for c, t, raw in reader.messages():
             if c.msgtype.endswith("LaserScan"):
                 m = store.deserialize_ros1(raw, c.msgtype)
-                ranges = np.ascontiguousarray(m.ranges[::every])
-                keep_int = len(m.intensities) == len(m.ranges)
+                n = len(m.ranges)
+                step = every * m.angle_increment if step_deg is None else np.radians(step_deg)
+                keep = np.round(np.arange(0.0, m.angle_increment * (n - 1) + 1e-9, step) / m.angle_increment)
+                keep = keep.astype(np.int64)
                 m = replace(
                     m,
-                    ranges=ranges,
-                    intensities=np.ascontiguousarray(m.intensities[::every]) if keep_int else m.intensities,
-                    angle_increment=m.angle_increment * every,
-                    angle_max=m.angle_min + m.angle_increment * every * (len(ranges) - 1),
+                    ranges=np.ascontiguousarray(m.ranges[keep]),
+                    intensities=np.ascontiguousarray(m.intensities[keep])
+                    if len(m.intensities) == n
+                    else m.intensities,
+                    angle_increment=float(step),
+                    angle_max=float(m.angle_min + step * (len(keep) - 1)),
                 )
                 raw = store.serialize_ros1(m, c.msgtype)
             writer.write(out[c.id], t, raw)

@@ -136,6 +136,10 @@ class FrameResult:
             appended later have none), or None.
         obs_dt: ``(N,)`` when each observation was measured, seconds after the frame stamp: that of the
             beams on the person for a laser position (0 for an image-only one), or None (all at the stamp).
+        occupied: ``(N,)`` how occupied the static-world map saw each observation's place (the median over
+            its laser detection's beams of the cell's occupied fraction, 0 where the cell changed while the
+            scanner stood still); NaN without a laser detection (observations appended later have none), or
+            None (not computed: a camera in use, or no map). The walk gate of laser-only labels uses it.
     """
 
     index: int
@@ -147,6 +151,7 @@ class FrameResult:
     legs: NDArray[np.float64] | None = None
     colours_hidden: NDArray[np.bool_] | None = None
     obs_dt: NDArray[np.float64] | None = None
+    occupied: NDArray[np.float64] | None = None
 
     @property
     def world_pose(self) -> Pose2:

@@ -46,6 +46,12 @@ _BODY_MIN_SCANS = 20  # ... judged once that scanner has this many scans in its 
 _SEGMENT_SHARE = 0.7  # a detection is on structure / the body when this share of its points is
 _VOUCH_S, _VOUCH_M = 0.5, 0.3  # a box-confirmed laser person vouches for static detections this near
 _CAMERA_SEEN_M = 0.3  # a camera observation no track took vouches for a track this near (camera gate)
+# without the camera, the walk of a track counts only its observations on places that the static map saw
+# occupied in less than this share of the scans that looked at them, or saw change while the scanner stood
+# still (StaticMap.changed_at): furniture that a moving robot's beams graze from some places and hit from
+# others looks half occupied (0.3–0.6 on leg_tracker's negative_2.bag), a walker's path through a room it
+# crossed 0.0–0.2; a track hopping between chair legs then walked nowhere
+_WALK_OCCUPIED = 0.25
 _WALK_GAP_S, _WALK_MEDIAN = 0.5, 5  # a stretch of a track (min_walk_m) ends at a gap this long, s; smoothing
 _CAMERA_TAIL_BACK_S = 1.0  # with a camera, stitching's take-over looks back this far (see tracking_config)
 # leg pairs on spots seen empty (_pairs_on_empty): the classical detector's leg threshold there, and the
@@ -88,7 +94,9 @@ def _static_masks(
         n = max((len(f.origins) for f in frames), default=0)
         bodies = [
             StaticMap.build(
-                (list(base_scans(f))[k] for f in frames if len(f.origins) > k), max_free_range=0.0
+                (list(base_scans(f))[k] for f in frames if len(f.origins) > k),
+                max_free_range=0.0,
+                steady_scans=0,
             )
             for k in range(n)
         ]
@@ -123,12 +131,15 @@ def fuse_all(
     body_maps: list[Any] | None = None,
 ) -> list[FrameResult]:
     """Static filter + fusion of every frame (base frame); the maps as :func:`_static_masks`."""
+    laser_only = camera is None or options.sources == "laser"
     # camera-only runs use neither laser detections nor scan points: no map to build
     smap = None
     if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
         from studio.detect.laser.static_map import StaticMap
 
-        smap = static_map or StaticMap.build(s for f in frames for s in odom_scans(f))
+        # (where it changed while a scanner stood still only matters to the walk gate: see perceive)
+        scans = (s for f in frames for s in odom_scans(f))
+        smap = static_map or StaticMap.build(scans, steady_scans=3 if laser_only else 0)
         det_static, pt_static = _static_masks(frames, smap, body_maps)
     else:
         det_static = [np.zeros(0 if f.laser is None else len(f.laser.xy), bool) for f in frames]
@@ -144,7 +155,6 @@ def fuse_all(
     detector = None
     # without the camera, the classical detector with the lower leg threshold of spots seen empty
     on_empty = None
-    laser_only = camera is None or options.sources == "laser"
     if laser_only and smap is not None and (options.laser_detector or "classical") == "classical":
         from studio.detect.laser import get_laser_detector
 
@@ -215,8 +225,26 @@ def fuse_all(
             _pair_legs(obs, laser),
             None if camera is None else colours_hidden(obs, camera),
             _measured_at(obs, f),
+            _occupied(obs, laser, f, smap) if laser_only and smap is not None else None,
         )
     return [r for r in out if r is not None]
+
+
+def _occupied(
+    obs: PersonObservations, laser: LaserDetections | None, f: PerceptionFrame, smap: Any
+) -> FloatArray:
+    """Per observation, how occupied the static map saw the place of its laser detection: the median over
+    its beams of the cell's occupied fraction, 0 for a cell that changed while the scanner stood still
+    (``StaticMap.changed_at``); NaN without a laser detection."""
+    out = np.full(len(obs), np.nan)
+    if laser is None or laser.segments is None:
+        return out
+    for k, li in enumerate(np.asarray(obs.laser_index)):
+        if 0 <= li < len(laser.segments) and len(laser.segments[li]):
+            pts = f.world_pose.apply(f.points[laser.segments[li], :2].astype(np.float64))
+            occ = np.where(smap.changed_at(pts), 0.0, smap.static_fraction(pts))
+            out[k] = float(np.median(occ))
+    return out
 
 
 _PERSON_BEAMS_M = 0.35  # a person's beams lie within this of their position (legs apart, a wide coat)
@@ -514,6 +542,7 @@ def track_all(
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         how = fr.observations.how
         ob = observations[fr_i]
+        occ = fr.occupied
         # camera observations no track took: the camera saw someone there, whoever the tracks say it is
         taken = {p.det_index for p in tf.points}
         free = [k for k, src in enumerate(ob.source) if camera_gate and src in by_camera and k not in taken]
@@ -524,7 +553,8 @@ def track_all(
             if p.det_index >= 0:
                 src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
-                if walk_gate:
+                on_free = occ is None or p.det_index >= len(occ) or not occ[p.det_index] >= _WALK_OCCUPIED
+                if walk_gate and on_free:
                     observed.setdefault(p.track_id, []).append((fr.stamp_ns, float(p.xy[0]), float(p.xy[1])))
                 # a laser person beside someone a box took, in that box: the camera saw someone there too
                 beside = p.det_index < len(how) and how[p.det_index] == "beside-box"

@@ -408,7 +408,12 @@ def perceive(
     from studio.track.appearance import clothing_colours
 
     # the static-world map grows while the recording is read (this thread mostly waits for the images)
-    static_map = StaticMapBuilder() if options.static_filter and options.sources != "camera" else None
+    # (where it changed while the scanner stood still only matters to the walk gate of laser-only labels)
+    static_map = (
+        StaticMapBuilder(steady_scans=0 if use_camera else 3)
+        if options.static_filter and options.sources != "camera"
+        else None
+    )
     beam_returns = BeamReturns()
     # and per scanner a map of its scans in the base frame: what most of them hit is the robot's own body
     body_maps: list[Any] = []
@@ -557,7 +562,7 @@ def perceive(
                 if pf.index % _BODY_EVERY == 0:  # the body is judged by a share of the scans: a sample does
                     for k, body_scan in enumerate(base_scans(pf)):
                         if k == len(body_maps):
-                            body_maps.append(StaticMapBuilder(max_free_range=0.0))
+                            body_maps.append(StaticMapBuilder(max_free_range=0.0, steady_scans=0))
                         body_maps[k].add(*body_scan)
                 t_map += time.perf_counter() - t3
             pending.append((frame, pf, job))

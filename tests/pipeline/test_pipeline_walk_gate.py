@@ -102,3 +102,24 @@ def test_jumping_between_two_legs_every_frame_is_no_walk() -> None:
 def test_fewer_observations_than_the_median_window_walk_nowhere() -> None:
     xy = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
     assert longest_walk(_obs(xy, np.arange(4) / HZ)) == 0.0
+
+
+def _labelled_with_occupied(walker_occ: float, stands_occ: float) -> tuple[int, int]:
+    """As :func:`_labelled` (laser only), with the static map's occupied share at each detection set."""
+    options = replace(LabelOptions(sources="laser"), static_filter=False)
+    frames = _frames()
+    occupied = np.array([walker_occ, stands_occ])
+    fused = [replace(fr, occupied=occupied) for fr in fuse_all(frames, None, options)]
+    labels, _ = track_all(frames, fused, options, has_camera=False)
+    near = [[float(np.min([np.hypot(p.x - c[0], p.y - c[1]) for p in lf.people], initial=9.0))
+             for c in (_walker(lf.frame), STANDS)] for lf in labels]  # fmt: skip
+    return sum(d[0] < 0.2 for d in near), sum(d[1] < 0.2 for d in near)
+
+
+def test_a_walk_over_places_seen_half_occupied_is_no_walk() -> None:
+    """Furniture that a moving robot's beams graze from some places and hit from others looks half occupied
+    to the static map; a track that "walks" over such places (hopping from one table leg to the next) did
+    not walk. A walk through places seen free counts as before; no share known (NaN) counts too."""
+    assert _labelled_with_occupied(0.1, 0.1) == (N, 0)
+    assert _labelled_with_occupied(float("nan"), 0.1) == (N, 0)
+    assert _labelled_with_occupied(0.5, 0.1) == (0, 0)

@@ -35,6 +35,16 @@ scanner are 2–3.5 cm apart); and a table leg between two beams of a robot that
 every scan it takes from there. So a robot that never moves never sees a spot empty: there the share
 alone decides.
 
+What a share cannot tell either is a walker's path from furniture that a moving robot sees from many
+places. Walking back and forth in front of a robot that stands still (or in front of open space that an old
+driver marks nothing in), someone makes the cells of their path look half occupied; a moving robot's beams
+graze a thin table leg from some places and hit it from others, and it looks half occupied too. What tells
+them apart is whether the cell *changed while the scanner stood still*: a cell hit in ``steady_scans`` (3)
+scans in a row and seen free in as many in a row, the two runs taken by a scanner within ``same_view``
+(0.2 m) of each other, held something that moved (:meth:`StaticMap.changed_at`). A thin leg that flickers
+between hit and missed from one place does not make steady runs of both; a leg that looks different from
+two places was seen from two places.
+
 A detection is static when most of its *segment's* points lie on occupied cells — deciding per segment is
 much more robust than per point. Built in the sensor (or base) frame instead of odom, the same map finds
 returns from the robot's own body (occupied in every scan whatever the robot does).
@@ -43,6 +53,7 @@ returns from the robot's own body (occupied in every scan whatever the robot doe
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 import cv2
 import numpy as np
@@ -69,10 +80,13 @@ class StaticMap:
         free: ``(W, H)`` int32, scans in which a beam passed through the cell and it was not hit.
         n_scans: number of scans accumulated.
         empty: ``(W, H)`` bool, the cell was once seen empty (see the module docstring): never structure.
+        changed: ``(W, H)`` bool, the cell was seen steadily hit and steadily free from one place (see
+            :meth:`changed_at`).
     """
 
     def __init__(self, *, cell: float, origin: ArrayLike, hits: NDArray[np.int32], free: NDArray[np.int32],
-                 n_scans: int, empty: NDArray[np.bool_] | None = None) -> None:  # fmt: skip
+                 n_scans: int, empty: NDArray[np.bool_] | None = None,
+                 changed: NDArray[np.bool_] | None = None) -> None:  # fmt: skip
         if cell <= 0.0:
             raise LaserDetectorError(f"static map cell size must be positive, got {cell}")
         if hits.shape != free.shape or hits.ndim != 2 or (empty is not None and empty.shape != hits.shape):
@@ -83,6 +97,9 @@ class StaticMap:
         self.free = free
         self.n_scans = int(n_scans)
         self.empty = np.zeros(hits.shape, dtype=bool) if empty is None else empty
+        self.changed = np.zeros(hits.shape, dtype=bool) if changed is None else changed
+        if self.changed.shape != hits.shape:
+            raise ValueError("changed must have the shape of hits")
 
     # -- building -------------------------------------------------------------------------------------
     @classmethod
@@ -98,6 +115,8 @@ class StaticMap:
         empty_range: float = 4.0,
         empty_scans: int = 20,
         empty_step: float = 0.05,
+        same_view: float = 0.2,
+        steady_scans: int = 3,
     ) -> StaticMap:
         """Accumulate scans into a map.
 
@@ -117,6 +136,9 @@ class StaticMap:
             empty_scans: a cell seen empty in this many scans in a row (no hit in between) is never
                 structure (0: every cell is judged by its share alone).
             empty_step: only scans taken this far or farther from the last few that counted count, metres.
+            same_view, steady_scans: a cell hit in ``steady_scans`` scans in a row and seen free in as many
+                in a row, each run by a scanner within ``same_view`` metres of where the other ran, changed
+                (:meth:`changed_at`; 0: none does).
 
         Returns:
             The map.
@@ -130,29 +152,31 @@ class StaticMap:
             empty_range=empty_range,
             empty_scans=empty_scans,
             empty_step=empty_step,
+            same_view=same_view,
+            steady_scans=steady_scans,
         )
         for scan in scans_in_odom:
             builder.add(*scan)
         return builder.finish()
 
     # -- queries --------------------------------------------------------------------------------------
-    def _lookup(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.bool_]]:
+    def _cells(self, points: ArrayLike) -> tuple[IntArray, IntArray]:
+        """The indices of the points that are finite and on the map, and their cells ``(K, 2)``."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        h = np.zeros(pts.shape[0], dtype=np.int32)
-        f = np.zeros(pts.shape[0], dtype=np.int32)
-        e = np.zeros(pts.shape[0], dtype=bool)
         ok = np.all(np.isfinite(pts), axis=1)
         ij = np.floor((pts[ok] - self.origin) / self.cell).astype(np.int64)
-        inside = (
-            (ij[:, 0] >= 0)
-            & (ij[:, 1] >= 0)
-            & (ij[:, 0] < self.hits.shape[0])
-            & (ij[:, 1] < self.hits.shape[1])
-        )
-        sel = np.flatnonzero(ok)[inside]
-        h[sel] = self.hits[ij[inside, 0], ij[inside, 1]]
-        f[sel] = self.free[ij[inside, 0], ij[inside, 1]]
-        e[sel] = self.empty[ij[inside, 0], ij[inside, 1]]
+        inside = (ij >= 0).all(axis=1) & (ij[:, 0] < self.hits.shape[0]) & (ij[:, 1] < self.hits.shape[1])
+        return np.flatnonzero(ok)[inside], ij[inside]
+
+    def _lookup(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.int32], NDArray[np.bool_]]:
+        n = len(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+        h = np.zeros(n, dtype=np.int32)
+        f = np.zeros(n, dtype=np.int32)
+        e = np.zeros(n, dtype=bool)
+        sel, ij = self._cells(points)
+        h[sel] = self.hits[ij[:, 0], ij[:, 1]]
+        f[sel] = self.free[ij[:, 0], ij[:, 1]]
+        e[sel] = self.empty[ij[:, 0], ij[:, 1]]
         return h, f, e
 
     def observations(self, points: ArrayLike) -> NDArray[np.int32]:
@@ -180,6 +204,14 @@ class StaticMap:
         """``(K,)`` whether each point's cell was once seen empty (see the module docstring): nothing
         there stood still for the whole recording. NaN points and points off the map give False."""
         return self._lookup(points)[2]
+
+    def changed_at(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """``(K,)`` whether each point's cell changed while the scanner stood still (see the module
+        docstring): something there moved. NaN points and points off the map give False."""
+        out = np.zeros(len(np.asarray(points, dtype=np.float64).reshape(-1, 2)), dtype=bool)
+        sel, ij = self._cells(points)
+        out[sel] = self.changed[ij[:, 0], ij[:, 1]]
+        return out
 
     def hit_fraction(self, points: ArrayLike) -> FloatArray:
         """``(K,)`` share of all the map's scans that hit each point's cell (0 for NaN points).
@@ -283,6 +315,8 @@ class StaticMapBuilder:
         empty_range: float = 4.0,
         empty_scans: int = 20,
         empty_step: float = 0.05,
+        same_view: float = 0.2,
+        steady_scans: int = 3,
     ) -> None:
         if not cell > 0.0:
             raise LaserDetectorError(f"static map cell size must be positive, got {cell}")
@@ -293,6 +327,8 @@ class StaticMapBuilder:
         self.empty_range = min(float(empty_range), self.max_free_range)
         self.empty_scans = max(int(empty_scans), 0)
         self.empty_step = float(empty_step)
+        self.same_view = float(same_view)
+        self.steady_scans = max(int(steady_scans), 0)
         self._views: list[FloatArray] = []
         n = int(np.ceil(max(self.empty_range, 0.0) / cell))
         ij = np.arange(-n, n + 1) * cell
@@ -359,7 +395,10 @@ class StaticMapBuilder:
             cv2.polylines(free_mask, list(lines), False, 1, lineType=cv2.LINE_8, shift=_SHIFT)
         win = grid.window(lo, hi)
         grid.hits[win] += hit_mask
-        grid.free[win] += free_mask & (hit_mask ^ 1)
+        free_now = free_mask & (hit_mask ^ 1)
+        grid.free[win] += free_now
+        if self.same_view > 0.0 and self.steady_scans > 0:
+            self._changed(win, hit_mask, free_now, o)
         if self.empty_scans and self.empty_range > 0.0:
             run = grid.run[win]  # views: updated in place
             run[hit_mask == 1] = 0
@@ -374,6 +413,32 @@ class StaticMapBuilder:
             seen_empty = np.asarray(cv2.erode(near, np.ones((3, 3), np.uint8)), np.uint8)
             run[a[0] : b[0], a[1] : b[1]] += seen_empty
             grid.empty[win] |= run >= self.empty_scans
+
+    def _changed(self, win: tuple[slice, slice], hit: NDArray[np.uint8], free: NDArray[np.uint8],
+                 o: FloatArray) -> None:  # fmt: skip
+        """Count this scan into each cell's run of hits or of free looks; a run that reaches
+        ``steady_scans`` marks the cell changed when the last run of the other kind to reach it was seen
+        from within ``same_view`` of here, and remembers where the scan stood."""
+        g, n = self._grid, self.steady_scans
+        width = g.hits.shape[1]
+        runs = g.state_run.reshape(-1)  # > 0: hit that many scans in a row, < 0: seen free that many
+        here = o.astype(np.float32)
+        for mask, sign, last_other, last_mine in (
+            (hit, 1, g.free_at, g.hit_at),
+            (free, -1, g.hit_at, g.free_at),
+        ):
+            i, j = np.divmod(np.flatnonzero(mask), mask.shape[1])
+            cells = (i + win[0].start) * width + (j + win[1].start)  # flat indices into the grid
+            r = runs[cells] * sign  # this kind's run so far (<= 0: the other kind's)
+            r = np.where(r > 0, np.minimum(r + 1, n + 1), 1)  # n + 1: steady for longer, no overflow
+            runs[cells] = r * sign
+            steady = cells[r == n]  # only the scan that makes the run steady
+            if not len(steady):
+                continue
+            other = last_other.reshape(-1, 2)[steady]  # where the other kind last became steady (NaN: never)
+            near = np.hypot(other[:, 0] - here[0], other[:, 1] - here[1]) < self.same_view
+            g.changed.reshape(-1)[steady[near]] = True
+            last_mine.reshape(-1, 2)[steady] = here
 
     def _new_view(self, origin: FloatArray) -> bool:
         """Whether a scan from ``origin`` counts towards the runs of empty scans: it lies ``empty_step`` or
@@ -390,7 +455,13 @@ class StaticMapBuilder:
         self._done = True
         g = self._grid
         return StaticMap(
-            cell=self.cell, origin=g.origin(), hits=g.hits, free=g.free, n_scans=self.n_scans, empty=g.empty
+            cell=self.cell,
+            origin=g.origin(),
+            hits=g.hits,
+            free=g.free,
+            n_scans=self.n_scans,
+            empty=g.empty,
+            changed=g.changed,
         )
 
 
@@ -405,6 +476,10 @@ class _Grid:
         self.free = np.zeros((0, 0), dtype=np.int32)
         self.run = np.zeros((0, 0), dtype=np.int32)  # scans in a row that saw the cell empty, until a hit
         self.empty = np.zeros((0, 0), dtype=bool)  # the run reached StaticMapBuilder.empty_scans once
+        self.changed = np.zeros((0, 0), dtype=bool)  # seen steadily hit and steadily free from one place
+        self.state_run = np.zeros((0, 0), dtype=np.int16)  # scans in a row hit (> 0) or seen free (< 0)
+        self.hit_at = np.zeros((0, 0, 2), dtype=np.float32)  # where its last run of hits became steady
+        self.free_at = np.zeros((0, 0, 2), dtype=np.float32)  # ... and its last run of free looks
 
     def cells(self, pts: FloatArray) -> IntArray:
         return np.floor(np.asarray(pts).reshape(-1, 2) / self.cell).astype(np.int64)
@@ -430,14 +505,20 @@ class _Grid:
                 "static map would exceed 400 M cells: points far away or a huge cell count"
             )
         grown = []
-        for old in (self.hits, self.free, self.run, self.empty):
-            new = np.zeros(tuple(size), dtype=old.dtype)
+        for old in self._arrays():
+            fill = np.nan if old.dtype == np.float32 else 0  # NaN: never seen from anywhere
+            new = np.full(tuple(size) + old.shape[2:], fill, dtype=old.dtype)
             if self.hits.size:
                 a = self.lo - new_lo
                 new[a[0] : a[0] + shape[0], a[1] : a[1] + shape[1]] = old
             grown.append(new)
         self.lo = new_lo
-        self.hits, self.free, self.run, self.empty = grown
+        (self.hits, self.free, self.run, self.empty, self.changed, self.state_run, self.hit_at,
+         self.free_at) = grown  # fmt: skip
+
+    def _arrays(self) -> tuple[NDArray[Any], ...]:
+        return (self.hits, self.free, self.run, self.empty, self.changed, self.state_run, self.hit_at,
+                self.free_at)  # fmt: skip
 
     def window(self, lo: IntArray, hi: IntArray) -> tuple[slice, slice]:
         """The array slices of cells ``lo`` … ``hi`` (inclusive; :meth:`ensure` them first)."""

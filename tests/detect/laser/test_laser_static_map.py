@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 from laser_synth import cast
@@ -250,3 +252,65 @@ def test_scans_from_one_place_see_a_spot_empty_once():
     person = np.flatnonzero(np.hypot(*(pts - np.array([2.5, -1.0])).T) < 0.15 + 0.03)
     assert np.all(StaticMap.build((p, o) for p, o, _ in scans).structure(pts[person]))
     assert not StaticMap.build(((p, o) for p, o, _ in scans), empty_step=0.0).structure(pts[person]).any()
+
+
+def test_a_spot_that_changed_while_the_scanner_stood_still():
+    """A robot that never moves: someone arrives at a spot after 30 scans and stays. The spot was seen free
+    30 scans in a row and then hit 90 in a row, all from one place: it changed, so what stands there moved.
+    The pillar and the walls look the same in every scan."""
+    scans = _waiting(drive=0)
+    smap = StaticMap.build((p, o) for p, o, _ in scans)
+    pts = scans[60][0]
+    person = np.flatnonzero(np.hypot(*(pts - np.array([2.5, -1.0])).T) < 0.15 + 0.03)
+    pillar = np.flatnonzero(np.hypot(*(pts - np.array([3.0, 1.5])).T) < 0.2 + 0.03)
+    assert smap.changed_at(pts[person]).all()
+    assert not smap.changed_at(pts[pillar]).any()
+    wall = np.array([[9.0, 0.0], [4.0, 3.0], [4.0, -3.0]])
+    assert not smap.changed_at(wall).any()
+    assert smap.changed_at(np.array([[np.nan, 0.0], [50.0, 50.0]])).tolist() == [False, False]
+    assert not StaticMap.build(((p, o) for p, o, _ in scans), steady_scans=0).changed.any()
+
+
+Origin = Callable[[int], tuple[float, float]]
+
+
+def _leg_scans(
+    n: int, origin: Origin, seen: Callable[[int], bool], radius: float
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """Scans by a 0.5° scanner at ``origin(k)`` of a table leg at (3, 0.4) there when ``seen(k)``, and the
+    returns from the leg."""
+    scans, hits = [], []
+    for k in range(n):
+        o = np.array(origin(k))
+        pts, _ = cast(
+            circles=[(3.0, 0.4, radius)] if seen(k) else [], walls=ROOM, origin=tuple(o), step_deg=0.5
+        )
+        pts = pts + o
+        scans.append((pts, o))
+        hits.append(pts[np.hypot(*(pts - np.array([3.0, 0.4])).T) < radius + 0.02])
+    return scans, np.concatenate(hits)
+
+
+def test_a_thin_leg_missed_now_and_then_did_not_change():
+    """From one place, a table leg hit in one scan and missed in the next (it falls between two beams as
+    the scanner jitters) never makes a steady run of either, though its share says half occupied."""
+    scans, leg = _leg_scans(60, lambda k: (1.0, -0.5), lambda k: k % 2 == 0, 0.03)
+    smap = StaticMap.build(scans)
+    assert len(leg) >= 30
+    assert np.all(smap.static_fraction(leg) == pytest.approx(0.5, abs=0.1))
+    assert not smap.changed_at(leg).any()
+    # taken one scan at a time, the flicker is a change
+    assert StaticMap.build(scans, steady_scans=1).changed_at(leg).all()
+    # missed for 3 scans in a row, then hit for 3, from one place: that is a change
+    scans, leg = _leg_scans(60, lambda k: (1.0, -0.5), lambda k: (k // 3) % 2 == 0, 0.03)
+    assert StaticMap.build(scans).changed_at(leg).all()
+
+
+def test_a_leg_a_moving_robot_hits_from_some_places_did_not_change():
+    """Driving past a 2 cm leg 2 m away, a 0.5° scanner hits it from some places and its beams pass beside it
+    from others, in runs: the places where it looked different lie farther apart than ``same_view``."""
+    scans, leg = _leg_scans(80, lambda k: (-0.5 + 0.06 * k, -1.5), lambda k: True, 0.01)
+    smap = StaticMap.build(scans)
+    assert 20 <= sum(np.hypot(*(p - np.array([3.0, 0.4])).T).min() < 0.03 for p, _ in scans) <= 70
+    assert not smap.changed_at(leg).any()
+    assert StaticMap.build(scans, same_view=1.0).changed_at(leg).any()
