@@ -51,7 +51,7 @@ _CAMERA_SEEN_M = 0.3  # a camera observation no track took vouches for a track t
 # still (StaticMap.changed_at): furniture that a moving robot's beams graze from some places and hit from
 # others looks half occupied (0.3–0.6 on leg_tracker's negative_2.bag), a walker's path through a room it
 # crossed 0.0–0.2; a track hopping between chair legs then walked nowhere
-_WALK_OCCUPIED = 0.25
+_WALK_OCCUPIED = 0.3
 _WALK_GAP_S, _WALK_MEDIAN = 0.5, 5  # a stretch of a track (min_walk_m) ends at a gap this long, s; smoothing
 _CAMERA_TAIL_BACK_S = 1.0  # with a camera, stitching's take-over looks back this far (see tracking_config)
 # leg pairs on spots seen empty (_pairs_on_empty): the classical detector's leg threshold there, and the
