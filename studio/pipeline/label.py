@@ -537,7 +537,8 @@ def track_all(
     sources: dict[int, Counter[str]] = {}
     camera_gate = has_camera and options.sources == "both"
     walk_gate = options.min_walk_m > 0 and (not has_camera or options.sources == "laser")
-    observed: dict[int, list[tuple[int, float, float]]] = {}  # walk gate: each track's observed positions
+    # walk gate: each track's observed positions (not on places seen occupied)
+    observed: dict[int, list[tuple[int, float, float]]] = {}
     by_camera = ("fused", "image")
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
         how = fr.observations.how
@@ -553,9 +554,19 @@ def track_all(
             if p.det_index >= 0:
                 src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
-                on_free = occ is None or p.det_index >= len(occ) or not occ[p.det_index] >= _WALK_OCCUPIED
-                if walk_gate and on_free:
-                    observed.setdefault(p.track_id, []).append((fr.stamp_ns, float(p.xy[0]), float(p.xy[1])))
+                if walk_gate:
+                    # a leg of a split pair (a row past the observations) is where its pair was
+                    row = (
+                        int(ob.alt_of[p.det_index])
+                        if p.det_index >= len(how) and ob.alt_of is not None
+                        else p.det_index
+                    )
+                    # left out, not marked: a walk that crosses such places for over _WALK_GAP_S is cut
+                    # there (else a few observations on the way from one chair leg to the next span a hop)
+                    if occ is None or not 0 <= row < len(occ) or not occ[row] >= _WALK_OCCUPIED:
+                        observed.setdefault(p.track_id, []).append(
+                            (fr.stamp_ns, float(p.xy[0]), float(p.xy[1]))
+                        )
                 # a laser person beside someone a box took, in that box: the camera saw someone there too
                 beside = p.det_index < len(how) and how[p.det_index] == "beside-box"
                 camera = src in by_camera or beside

@@ -662,11 +662,11 @@ class NoLaserDetector:
         return LaserDetections.empty(with_segments=True)
 
 
-def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray, FloatArray]]:
+def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray, FloatArray, int, float]]:
     """The frame's scans in the world frame (:attr:`PerceptionFrame.world_pose`): ``(points (M, 2), scanner
-    position (2,), open ends (K, 2))``, beams in order with NaN for no return, then the far ends of the
-    beams that met nothing within range (what :class:`studio.detect.laser.static_map.StaticMap`
-    accumulates)."""
+    position (2,), open ends (K, 2), scanner index, frame stamp in s)``, beams in order with NaN for no
+    return, then the far ends of the beams that met nothing within range (what
+    :class:`studio.detect.laser.static_map.StaticMap` accumulates)."""
     pose = f.world_pose
     for k in range(len(f.origins)):
         sel = f.origin_of_point == k
@@ -675,4 +675,6 @@ def odom_scans(f: PerceptionFrame) -> Iterator[tuple[FloatArray, FloatArray, Flo
             pose.apply(f.points[sel, :2].astype(np.float64)),
             pose.apply(f.origins[k]),
             pose.apply(ends) if len(ends) else np.zeros((0, 2)),
+            k,
+            f.stamp_ns * 1e-9,
         )

@@ -116,7 +116,8 @@ def test_beams_that_met_nothing_reach_the_static_map(recording):
         assert len(f.open_owner) == len(f.open_ends)
         reach = np.hypot(*(f.open_ends - f.origins[f.open_owner]).T)
         np.testing.assert_allclose(reach, 10.0, atol=1e-3)
-        for k, (_points, origin, ends) in enumerate(odom_scans(f)):
+        for k, (_points, origin, ends, sensor, stamp) in enumerate(odom_scans(f)):
+            assert (sensor, stamp) == (k, f.stamp_ns * 1e-9)
             assert len(ends) == np.sum(f.open_owner == k)
             np.testing.assert_allclose(np.hypot(*(ends - origin).T), 10.0, atol=1e-3)
     assert info["static_map"].free.sum() > 0

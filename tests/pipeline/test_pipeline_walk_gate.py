@@ -123,3 +123,36 @@ def test_a_walk_over_places_seen_half_occupied_is_no_walk() -> None:
     assert _labelled_with_occupied(0.1, 0.1) == (N, 0)
     assert _labelled_with_occupied(float("nan"), 0.1) == (N, 0)
     assert _labelled_with_occupied(0.5, 0.1) == (0, 0)
+
+
+def test_a_leg_of_a_split_pair_is_where_its_pair_was() -> None:
+    """A leg the tracker took from a split pair (a row past the observations) counts as on the pair's
+    place: a track on the legs of a pair on half-occupied places walks no more than one on the pair."""
+    from studio.track.base import TrackFrame, TrackPoint, TrackResult
+
+    frames = []
+    no_points = (np.zeros((0, 3), np.float32), np.zeros((1, 2)), np.zeros(0, np.int16))
+    for k in range(N):
+        xy = _walker(k)[None]
+        legs = np.array([[xy[0] + [0.0, 0.1], xy[0] - [0.0, 0.1]]])
+        laser = LaserDetections(xy, [0.8], [KIND_PAIR], [0.2], (np.zeros(0, int),), legs=legs)
+        frames.append(PerceptionFrame(k, _stamp(k), Pose2(), None, None, laser, np.full(1, 0.3), *no_points))
+    options = replace(LabelOptions(sources="laser"), static_filter=False, recover_radius=0.0)
+
+    def taking(row: int, occupied: float) -> int:
+        def tracker(observations: list, config: object = None) -> TrackResult:
+            assert observations[0].alt_of is not None
+            assert len(observations[0].xy) == 3  # the pair and its two legs
+            return TrackResult(
+                tuple(
+                    TrackFrame(o.stamp_ns, (TrackPoint(0, o.xy[row], np.eye(2) * 0.01, row),))
+                    for o in observations
+                )
+            )
+
+        fused = [replace(fr, occupied=np.array([occupied])) for fr in fuse_all(frames, None, options)]
+        labels, _ = track_all(frames, fused, options, has_camera=False, tracker=tracker)
+        return sum(len(lf.people) for lf in labels)
+
+    assert taking(0, 0.1) == taking(1, 0.1) == N
+    assert taking(0, 0.5) == taking(1, 0.5) == 0

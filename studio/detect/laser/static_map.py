@@ -39,11 +39,14 @@ What a share cannot tell either is a walker's path from furniture that a moving 
 places. Walking back and forth in front of a robot that stands still (or in front of open space that an old
 driver marks nothing in), someone makes the cells of their path look half occupied; a moving robot's beams
 graze a thin table leg from some places and hit it from others, and it looks half occupied too. What tells
-them apart is whether the cell *changed while the scanner stood still*: a cell hit in ``steady_scans`` (3)
-scans in a row and seen free in as many in a row, the two runs taken by a scanner within ``same_view``
-(0.2 m) of each other, held something that moved (:meth:`StaticMap.changed_at`). A thin leg that flickers
-between hit and missed from one place does not make steady runs of both; a leg that looks different from
-two places was seen from two places.
+them apart is whether the cell *changed while the scanner stood still*: per scanner, a cell hit in
+``steady_scans`` (3) scans in a row over ``steady_s`` (0.2 s) or more, and seen free in as many over as long,
+each run begun and made steady within ``same_view`` (0.2 m) of where the later one became steady, held
+something that moved (:meth:`StaticMap.changed_at`). A thin leg that flickers between hit and missed from
+one place does not make steady runs of both; a leg that looks different from two places was seen from two
+places, and a robot that drives on while a run lasts has left the place (the runs are timed, so a fast
+scanner on a moving robot does not count as standing still); each scanner keeps its own runs, as two
+scanners on one robot look from places apart.
 
 A detection is static when most of its *segment's* points lie on occupied cells — deciding per segment is
 much more robust than per point. Built in the sensor (or base) frame instead of odom, the same map finds
@@ -53,6 +56,7 @@ returns from the robot's own body (occupied in every scan whatever the robot doe
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -105,7 +109,11 @@ class StaticMap:
     @classmethod
     def build(
         cls,
-        scans_in_odom: Iterable[tuple[ArrayLike, ArrayLike] | tuple[ArrayLike, ArrayLike, ArrayLike]],
+        scans_in_odom: Iterable[
+            tuple[ArrayLike, ArrayLike]
+            | tuple[ArrayLike, ArrayLike, ArrayLike]
+            | tuple[ArrayLike, ArrayLike, ArrayLike, int, float]
+        ],
         *,
         cell: float = 0.05,
         max_free_range: float = 10.0,
@@ -117,6 +125,7 @@ class StaticMap:
         empty_step: float = 0.05,
         same_view: float = 0.2,
         steady_scans: int = 3,
+        steady_s: float = 0.2,
     ) -> StaticMap:
         """Accumulate scans into a map.
 
@@ -125,7 +134,8 @@ class StaticMap:
                 order; invalid beams NaN (they mark nothing: an error says nothing about free space).
                 Optionally a third element ``open_ends (K, 2)``: where the beams that met nothing within
                 the scanner's ``range_max`` end (:meth:`studio.io.LaserScan.open`); the cells along them
-                are free up to ``max_free_range``.
+                are free up to ``max_free_range``; and a fourth and fifth, the scanner's index and the
+                scan's time in seconds (:meth:`StaticMapBuilder.add`; else scanner 0, untimed).
             cell: cell size, metres.
             max_free_range: beams mark cells free up to this distance from the sensor, metres.
             free_margin: the last ``free_margin`` metres before a return (and the cell before them) are not
@@ -136,9 +146,10 @@ class StaticMap:
             empty_scans: a cell seen empty in this many scans in a row (no hit in between) is never
                 structure (0: every cell is judged by its share alone).
             empty_step: only scans taken this far or farther from the last few that counted count, metres.
-            same_view, steady_scans: a cell hit in ``steady_scans`` scans in a row and seen free in as many
-                in a row, each run by a scanner within ``same_view`` metres of where the other ran, changed
-                (:meth:`changed_at`; 0: none does).
+            same_view, steady_scans, steady_s: a cell that one scanner hit in ``steady_scans`` scans in a
+                row over ``steady_s`` seconds or more and saw free as long, both runs begun and made steady
+                within ``same_view`` metres of where the later one became steady, changed (:meth:`changed_at`;
+                ``steady_scans`` 0: none does; untimed scans count by number alone).
 
         Returns:
             The map.
@@ -154,6 +165,7 @@ class StaticMap:
             empty_step=empty_step,
             same_view=same_view,
             steady_scans=steady_scans,
+            steady_s=steady_s,
         )
         for scan in scans_in_odom:
             builder.add(*scan)
@@ -317,6 +329,7 @@ class StaticMapBuilder:
         empty_step: float = 0.05,
         same_view: float = 0.2,
         steady_scans: int = 3,
+        steady_s: float = 0.2,
     ) -> None:
         if not cell > 0.0:
             raise LaserDetectorError(f"static map cell size must be positive, got {cell}")
@@ -328,7 +341,9 @@ class StaticMapBuilder:
         self.empty_scans = max(int(empty_scans), 0)
         self.empty_step = float(empty_step)
         self.same_view = float(same_view)
-        self.steady_scans = max(int(steady_scans), 0)
+        self.steady_scans = min(max(int(steady_scans), 0), 1000)
+        self.steady_s = float(steady_s)
+        self._t_first: float | None = None
         self._views: list[FloatArray] = []
         n = int(np.ceil(max(self.empty_range, 0.0) / cell))
         ij = np.arange(-n, n + 1) * cell
@@ -337,9 +352,18 @@ class StaticMapBuilder:
         self.n_scans = 0
         self._done = False
 
-    def add(self, points: ArrayLike, origin: ArrayLike, open_ends: ArrayLike | None = None) -> None:
+    def add(
+        self,
+        points: ArrayLike,
+        origin: ArrayLike,
+        open_ends: ArrayLike | None = None,
+        sensor: int = 0,
+        stamp_s: float | None = None,
+    ) -> None:
         """One scan: ``points (M, 2)`` in the map frame (NaN = an error, marks nothing), ``origin (2,)`` and
-        optionally ``open_ends (K, 2)``, the far ends of the beams that met nothing within range.
+        optionally ``open_ends (K, 2)``, the far ends of the beams that met nothing within range; ``sensor``,
+        which scanner took it, and ``stamp_s``, when (seconds, any epoch), for the runs that tell a change
+        (:meth:`StaticMap.changed_at`; without a time they count scans only).
 
         The scan's hits (dilated by ``dilate`` cells) count once each in ``hits``; every cell a beam's line
         crosses from the sensor to ``free_margin`` + one cell before its return, or to its open end (at most
@@ -398,7 +422,7 @@ class StaticMapBuilder:
         free_now = free_mask & (hit_mask ^ 1)
         grid.free[win] += free_now
         if self.same_view > 0.0 and self.steady_scans > 0:
-            self._changed(win, hit_mask, free_now, o)
+            self._changed(win, hit_mask, free_now, o, int(sensor), stamp_s)
         if self.empty_scans and self.empty_range > 0.0:
             run = grid.run[win]  # views: updated in place
             run[hit_mask == 1] = 0
@@ -414,31 +438,52 @@ class StaticMapBuilder:
             run[a[0] : b[0], a[1] : b[1]] += seen_empty
             grid.empty[win] |= run >= self.empty_scans
 
-    def _changed(self, win: tuple[slice, slice], hit: NDArray[np.uint8], free: NDArray[np.uint8],
-                 o: FloatArray) -> None:  # fmt: skip
-        """Count this scan into each cell's run of hits or of free looks; a run that reaches
-        ``steady_scans`` marks the cell changed when the last run of the other kind to reach it was seen
-        from within ``same_view`` of here, and remembers where the scan stood."""
+    def _changed(
+        self,
+        win: tuple[slice, slice],
+        hit: NDArray[Any],
+        free: NDArray[Any],
+        o: FloatArray,
+        sensor: int,
+        stamp_s: float | None,
+    ) -> None:
+        """Count this scan into the scanner's run of hits or of free looks at each cell; a run that has
+        lasted ``steady_scans`` scans and ``steady_s`` becomes steady, and marks the cell changed when the
+        scanner's last steady run of the other kind there and this one both began within ``same_view`` of
+        here (it stood still meanwhile)."""
         g, n = self._grid, self.steady_scans
+        if stamp_s is not None and self._t_first is None:
+            self._t_first = float(stamp_s)
+        t = np.float32(0.0 if stamp_s is None or self._t_first is None else stamp_s - self._t_first)
+        v = g.view(sensor)
         width = g.hits.shape[1]
-        runs = g.state_run.reshape(-1)  # > 0: hit that many scans in a row, < 0: seen free that many
+        runs, began_t, began_at = v.run.reshape(-1), v.began_t.reshape(-1), v.began_at.reshape(-1, 2)
         here = o.astype(np.float32)
+        # a run: its count (n + 1 once steady) and where and when it began; a steady run of each kind: where
+        # it began (steady_at: where the last one of that kind began, NaN: never)
         for mask, sign, last_other, last_mine in (
-            (hit, 1, g.free_at, g.hit_at),
-            (free, -1, g.hit_at, g.free_at),
+            (hit, 1, v.free_began_at, v.hit_began_at),
+            (free, -1, v.hit_began_at, v.free_began_at),
         ):
             i, j = np.divmod(np.flatnonzero(mask), mask.shape[1])
             cells = (i + win[0].start) * width + (j + win[1].start)  # flat indices into the grid
-            r = runs[cells] * sign  # this kind's run so far (<= 0: the other kind's)
-            r = np.where(r > 0, np.minimum(r + 1, n + 1), 1)  # n + 1: steady for longer, no overflow
+            r = runs[cells] * sign  # this kind's run so far (<= 0: none, or the other kind's)
+            new = r <= 0
+            began_t[cells[new]] = t
+            began_at[cells[new]] = here
+            r = np.where(new, 1, np.where(r > n, r, np.minimum(r + 1, n)))
+            timed = stamp_s is None or self.steady_s <= 0.0
+            ready = (r == n) & (timed or (t - began_t[cells] >= self.steady_s))
+            r[ready] = n + 1
             runs[cells] = r * sign
-            steady = cells[r == n]  # only the scan that makes the run steady
+            steady = cells[ready]
             if not len(steady):
                 continue
-            other = last_other.reshape(-1, 2)[steady]  # where the other kind last became steady (NaN: never)
-            near = np.hypot(other[:, 0] - here[0], other[:, 1] - here[1]) < self.same_view
+            start = began_at[steady]
+            other = last_other.reshape(-1, 2)[steady]  # NaN: no steady run of the other kind yet
+            near = np.maximum(np.hypot(*(other - here).T), np.hypot(*(start - here).T)) < self.same_view
             g.changed.reshape(-1)[steady[near]] = True
-            last_mine.reshape(-1, 2)[steady] = here
+            last_mine.reshape(-1, 2)[steady] = start
 
     def _new_view(self, origin: FloatArray) -> bool:
         """Whether a scan from ``origin`` counts towards the runs of empty scans: it lies ``empty_step`` or
@@ -465,6 +510,19 @@ class StaticMapBuilder:
         )
 
 
+@dataclass
+class _Runs:
+    """One scanner's runs per cell (:meth:`StaticMapBuilder._changed`): the current run (> 0 hits, < 0 free
+    looks, ± (steady_scans + 1) once steady), when and where it began, and where the last steady run of
+    hits and of free looks began."""
+
+    run: NDArray[np.int16]
+    began_t: NDArray[np.float32]
+    began_at: NDArray[np.float32]
+    hit_began_at: NDArray[np.float32]
+    free_began_at: NDArray[np.float32]
+
+
 class _Grid:
     """A dense count grid that grows to hold any cell index."""
 
@@ -476,10 +534,8 @@ class _Grid:
         self.free = np.zeros((0, 0), dtype=np.int32)
         self.run = np.zeros((0, 0), dtype=np.int32)  # scans in a row that saw the cell empty, until a hit
         self.empty = np.zeros((0, 0), dtype=bool)  # the run reached StaticMapBuilder.empty_scans once
-        self.changed = np.zeros((0, 0), dtype=bool)  # seen steadily hit and steadily free from one place
-        self.state_run = np.zeros((0, 0), dtype=np.int16)  # scans in a row hit (> 0) or seen free (< 0)
-        self.hit_at = np.zeros((0, 0, 2), dtype=np.float32)  # where its last run of hits became steady
-        self.free_at = np.zeros((0, 0, 2), dtype=np.float32)  # ... and its last run of free looks
+        self.changed = np.zeros((0, 0), dtype=bool)  # changed while a scanner stood still
+        self.views: list[_Runs] = []  # per scanner: its runs of hits and of free looks
 
     def cells(self, pts: FloatArray) -> IntArray:
         return np.floor(np.asarray(pts).reshape(-1, 2) / self.cell).astype(np.int64)
@@ -504,21 +560,36 @@ class _Grid:
             raise LaserDetectorError(
                 "static map would exceed 400 M cells: points far away or a huge cell count"
             )
-        grown = []
-        for old in self._arrays():
+        a = self.lo - new_lo
+
+        def grown(old: NDArray[Any]) -> NDArray[Any]:
             fill = np.nan if old.dtype == np.float32 else 0  # NaN: never seen from anywhere
             new = np.full(tuple(size) + old.shape[2:], fill, dtype=old.dtype)
-            if self.hits.size:
-                a = self.lo - new_lo
+            if old.size:
                 new[a[0] : a[0] + shape[0], a[1] : a[1] + shape[1]] = old
-            grown.append(new)
-        self.lo = new_lo
-        (self.hits, self.free, self.run, self.empty, self.changed, self.state_run, self.hit_at,
-         self.free_at) = grown  # fmt: skip
+            return new
 
-    def _arrays(self) -> tuple[NDArray[Any], ...]:
-        return (self.hits, self.free, self.run, self.empty, self.changed, self.state_run, self.hit_at,
-                self.free_at)  # fmt: skip
+        self.hits, self.free, self.run = grown(self.hits), grown(self.free), grown(self.run)
+        self.empty, self.changed = grown(self.empty), grown(self.changed)
+        for v in self.views:
+            for name in _Runs.__dataclass_fields__:
+                setattr(v, name, grown(getattr(v, name)))
+        self.lo = new_lo
+
+    def view(self, sensor: int) -> _Runs:
+        """The runs of scanner ``sensor`` (made on first use)."""
+        while len(self.views) <= sensor:
+            shape = self.hits.shape
+            self.views.append(
+                _Runs(
+                    np.zeros(shape, np.int16),
+                    np.full(shape, np.nan, np.float32),
+                    np.full((*shape, 2), np.nan, np.float32),
+                    np.full((*shape, 2), np.nan, np.float32),
+                    np.full((*shape, 2), np.nan, np.float32),
+                )
+            )
+        return self.views[sensor]
 
     def window(self, lo: IntArray, hi: IntArray) -> tuple[slice, slice]:
         """The array slices of cells ``lo`` … ``hi`` (inclusive; :meth:`ensure` them first)."""

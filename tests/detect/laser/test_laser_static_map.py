@@ -314,3 +314,37 @@ def test_a_leg_a_moving_robot_hits_from_some_places_did_not_change():
     assert 20 <= sum(np.hypot(*(p - np.array([3.0, 0.4])).T).min() < 0.03 for p, _ in scans) <= 70
     assert not smap.changed_at(leg).any()
     assert StaticMap.build(scans, same_view=1.0).changed_at(leg).any()
+
+
+def test_each_scanner_keeps_its_own_runs():
+    """Two scanners 0.6 m apart on a robot that never moves take turns; someone arrives and stays. Whichever
+    scanner sees the spot first, each one saw it free and then hit from where it stands: it changed."""
+    person = (2.5, -1.0, 0.15)
+    for first in (0, 1):
+        scans = []
+        for k in range(60):
+            sensor = (k + first) % 2
+            origin = (0.3, 0.0) if sensor == 0 else (-0.3, 0.0)
+            pts, _ = cast(circles=[person] if k >= 20 else [], walls=ROOM, origin=origin, step_deg=0.5)
+            scans.append((pts + np.array(origin), np.array(origin), np.zeros((0, 2)), sensor, k / 20))
+        hit = scans[-1][0][np.hypot(*(scans[-1][0] - np.array(person[:2])).T) < 0.18]
+        assert len(hit) >= 3
+        assert StaticMap.build(scans).changed_at(hit).all()
+
+
+def test_runs_are_timed_so_a_fast_scanner_on_a_moving_robot_did_not_stand_still():
+    """Driving past a 2 cm leg at 0.5 m/s, a 40 Hz scanner moves 1.25 cm a scan: three scans in a row are
+    3.75 cm of travel, and the runs where the leg was hit and where it was missed seem to come from one
+    place. Timed, a run must last 0.2 s (10 cm), and a run begun 0.2 m back is not from here."""
+    scans, leg = _leg_scans(384, lambda k: (-0.5 + 0.0125 * k, -1.5), lambda k: True, 0.01)
+    timed = [(p, o, np.zeros((0, 2)), 0, k / 40) for k, (p, o) in enumerate(scans)]
+    assert not StaticMap.build(timed).changed_at(leg).any()
+    assert StaticMap.build(scans).changed_at(leg).any()  # untimed: three scans make a run
+
+
+def test_timed_runs_catch_someone_arriving_in_front_of_a_robot_that_stands():
+    """As above for a 7.5 Hz scanner that stands still: the spot was free for 4 s, then hit."""
+    scans = [(p, o, np.zeros((0, 2)), 0, k / 7.5) for k, (p, o, _) in enumerate(_waiting(drive=0))]
+    pts = scans[60][0]
+    person = np.flatnonzero(np.hypot(*(pts - np.array([2.5, -1.0])).T) < 0.15 + 0.03)
+    assert StaticMap.build(scans).changed_at(pts[person]).all()
