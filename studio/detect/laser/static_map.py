@@ -459,8 +459,8 @@ class StaticMapBuilder:
         width = g.hits.shape[1]
         runs, began_t, began_at = v.run.reshape(-1), v.began_t.reshape(-1), v.began_at.reshape(-1, 2)
         here = o.astype(np.float32)
-        # a run: its count (n + 1 once steady) and where and when it began; a steady run of each kind: where
-        # it began (steady_at: where the last one of that kind began, NaN: never)
+        # per cell the current run (its count, n + 1 once steady; when and where it began) and, per kind,
+        # where the last steady run of that kind began (NaN: none yet)
         for mask, sign, last_other, last_mine in (
             (hit, 1, v.free_began_at, v.hit_began_at),
             (free, -1, v.hit_began_at, v.free_began_at),
@@ -472,8 +472,8 @@ class StaticMapBuilder:
             began_t[cells[new]] = t
             began_at[cells[new]] = here
             r = np.where(new, 1, np.where(r > n, r, np.minimum(r + 1, n)))
-            timed = stamp_s is None or self.steady_s <= 0.0
-            ready = (r == n) & (timed or (t - began_t[cells] >= self.steady_s))
+            no_clock = stamp_s is None or self.steady_s <= 0.0  # untimed scans count by number alone
+            ready = (r == n) & (no_clock or (t - began_t[cells] >= self.steady_s))
             r[ready] = n + 1
             runs[cells] = r * sign
             steady = cells[ready]
