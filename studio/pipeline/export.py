@@ -143,7 +143,9 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
     if (cam is None or options.sources == "laser") and options.min_walk_m > 0:
         lines.append(
             f"- Without the camera a track is kept only if it walked {options.min_walk_m:g} m somewhere "
-            "(furniture stands still): someone who stood still for the whole recording is not labelled."
+            "(furniture stands still), over places the laser saw free most of the time or saw someone leave: "
+            "someone who stood still for the whole recording is not labelled, nor a walk through a crowd "
+            "so dense that its path was occupied 30 % of the time."
         )
     if any("oracle" in n for n in result.notes) or (options.image_detector or "").startswith("oracle"):
         lines.append("- Boxes come from the ORACLE detector (ground truth with noise): simulated data only.")
