@@ -37,6 +37,7 @@ from studio.io.rig import parse_rig
 from studio.labels.base import LabelFrame, LabelPerson
 from studio.pipeline.base import FrameResult
 from studio.pipeline.label import LabelRun, PerceptionFrame
+from studio.pipeline.perceive import compact_beams
 
 W, H = 1920, 960
 N_BEAMS = 1081
@@ -126,9 +127,8 @@ def make_sequence(n: int, rng: np.random.Generator) -> tuple[list[Frame], list[P
                 None,
                 laser,
                 np.full(4, 0.3),
-                np.concatenate(pts),
                 np.array([s.sensor_pose.t[:2] for s in scans]),
-                np.concatenate(owner),
+                *compact_beams(np.concatenate(pts), np.concatenate(owner), len(scans)),
             )
         )
         frames.append(frame)
@@ -166,7 +166,15 @@ def frames_from_recording(
             frames.append(frame)
             percs.append(
                 PerceptionFrame(
-                    frame.index, frame.stamp_ns, frame.robot_pose, None, None, laser, lz, pts, origins, owner
+                    frame.index,
+                    frame.stamp_ns,
+                    frame.robot_pose,
+                    None,
+                    None,
+                    laser,
+                    lz,
+                    origins,
+                    *compact_beams(pts, owner, len(origins)),
                 )
             )
             results.append(

@@ -68,7 +68,7 @@ from studio.io import load_rig
 from studio.labels import LabelSet, read_labels
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, perceive, track_all
-from studio.pipeline.perceive import detect_again, off_people
+from studio.pipeline.perceive import compact_beams, detect_again, off_people
 from studio.track.appearance import appearance_distance, median_appearance
 from studio.track.models import cv_matrix
 from studio.track.offline import track_offline, tracks_from_hits
@@ -103,6 +103,10 @@ def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCam
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(pickle.dumps((frames, cam)))
     frames, cam = pickle.loads(path.read_bytes())
+    for f in frames:
+        if "scan_sizes" not in vars(f):  # stored before session 51: a height and a scanner index per beam
+            owner = vars(f).pop("origin_of_point")
+            f.points, f.scan_sizes, f.scan_planes = compact_beams(f.points, owner, len(f.origins))
     if any(f.laser is not None and f.beam_clocks is None for f in frames):
         print(f"{path.name}: stored before beam times were kept (session 42); delete it to make it again")
     if options.scan_matching and frames and frames[0].track_pose is None:  # stored before scan matching

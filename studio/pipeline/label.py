@@ -197,7 +197,8 @@ def fuse_all(
         pts, rays = None, None
         if options.sources != "camera" and len(f.points):
             hit = np.isfinite(f.points[:, 0])
-            pts = f.points[hit & ~ps].astype(np.float64)
+            kept = np.flatnonzero(hit & ~ps)
+            pts = np.c_[f.points[kept], f.points_z(kept)]
             rays = ScanRays(f.origins[f.origin_of_point[hit]], f.points[hit, :2].astype(np.float64))
         obs = fuse_frame(
             f.image,

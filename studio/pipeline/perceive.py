@@ -111,9 +111,13 @@ class PerceptionFrame:
     appearance: NDArray[np.float32] | None  # (n_boxes, D)
     laser: LaserDetections | None  # base frame, segments index into `points`
     laser_z: FloatArray  # (n_laser,) scan-plane height of each detection in the base frame
-    points: NDArray[np.float32]  # (M, 3) all beams of the frame's scans in the base frame, NaN = no return
     origins: FloatArray  # (S, 2) scanner positions in the base frame
-    origin_of_point: NDArray[np.int16]  # (M,) which scanner each point came from
+    # the beams of the frame's scans, as :func:`compact_beams` keeps them (pass one holds every beam until
+    # tracking ends: a plane per scan instead of a height per beam saves a third of that memory):
+    # (M, 2) x, y of every beam in the base frame, NaN = no return, scanner by scanner
+    points: NDArray[np.float32]
+    scan_sizes: NDArray[np.int32]  # (S,) how many of `points` each scanner gave
+    scan_planes: FloatArray  # (S, 3) a, b, c per scanner: its beams lie at height z = a + b·x + c·y
     # T_world_base: the odometry pose corrected by scan matching (None: robot_pose, no correction)
     track_pose: Pose2 | None = None
     # far ends (K, 2) in the base frame of the beams that met nothing within range, and their scanners (K,)
@@ -123,9 +127,46 @@ class PerceptionFrame:
     beam_clocks: FloatArray | None = None
 
     @property
+    def origin_of_point(self) -> NDArray[np.intp]:
+        """``(M,)`` which scanner each of ``points`` came from."""
+        return np.repeat(np.arange(len(self.scan_sizes)), self.scan_sizes)
+
+    def points_z(self, sel: Any = slice(None)) -> FloatArray:
+        """The base-frame height of ``points[sel]`` (all of them by default), from their scan planes."""
+        abc = self.scan_planes[self.origin_of_point[sel]]
+        xy = self.points[sel].astype(np.float64)
+        return abc[:, 0] + abc[:, 1] * xy[:, 0] + abc[:, 2] * xy[:, 1]
+
+    @property
     def world_pose(self) -> Pose2:
         """The pose the static map and the tracker use: ``track_pose``, else the odometry's."""
         return self.robot_pose if self.track_pose is None else self.track_pose
+
+
+def compact_beams(
+    points: NDArray[np.float32], owner: NDArray[np.integer], n_scanners: int
+) -> tuple[NDArray[np.float32], NDArray[np.int32], FloatArray]:
+    """What :class:`PerceptionFrame` keeps of :func:`laser_in_base`'s beams ``(M, 3)`` and their scanners
+    ``(M,)`` (scanner by scanner): their x, y ``(M, 2)``, each scanner's count ``(S,)`` and its scan plane
+    ``(S, 3)``.
+
+    A 2-D scanner's beams lie in one plane, so their height follows from x, y: exactly for a level scanner
+    (one height), to float precision for a tilted one (a least-squares plane through its returns).
+    """
+    sizes = np.bincount(np.asarray(owner, np.intp), minlength=n_scanners).astype(np.int32)
+    planes = np.zeros((n_scanners, 3))
+    start = 0
+    for k, n in enumerate(sizes):
+        p = points[start : start + n].astype(np.float64)
+        start += n
+        p = p[np.isfinite(p).all(axis=1)]
+        if not len(p):
+            continue
+        if np.ptp(p[:, 2]) == 0:  # level: one height, kept exactly
+            planes[k, 0] = p[0, 2]
+        else:
+            planes[k] = np.linalg.lstsq(np.c_[np.ones(len(p)), p[:, :2]], p[:, 2], rcond=None)[0]
+    return np.ascontiguousarray(points[:, :2]), sizes, planes
 
 
 def remembers_legs(detector: Any) -> bool:
@@ -193,7 +234,7 @@ def laser_in_base(
     merged = merge_detections(parts, offsets=offsets)
     z_all = np.concatenate(zs)
     points = np.concatenate(pts_all)
-    laser_z = _heights(merged, points, float(np.mean(z_all)) if len(z_all) else 0.0)
+    laser_z = _heights(merged, points[:, 2], float(np.mean(z_all)) if len(z_all) else 0.0)
     return merged, laser_z, points, np.array(origins), np.concatenate(owner)
 
 
@@ -311,12 +352,12 @@ def open_beams_in_base(
     return np.concatenate(ends), np.concatenate(owner)
 
 
-def _heights(merged: LaserDetections, points: NDArray[np.float32], fallback: float) -> FloatArray:
-    """Scan-plane height of each detection: that of the scan whose points dominate its segment
-    (``fallback`` without segments or points)."""
-    if merged.segments is None or not len(points):
+def _heights(merged: LaserDetections, z_all: FloatArray, fallback: float) -> FloatArray:
+    """Scan-plane height of each detection: that of the scan whose points (their heights ``z_all``, NaN =
+    no return) dominate its segment (``fallback`` without segments or points)."""
+    if merged.segments is None or not len(z_all):
         return np.full(len(merged.xy), fallback)
-    z = np.array([float(np.nanmedian(points[s, 2])) if len(s) else fallback for s in merged.segments])
+    z = np.array([float(np.nanmedian(z_all[s])) if len(s) else fallback for s in merged.segments])
     return np.nan_to_num(z, nan=fallback)
 
 
@@ -358,8 +399,9 @@ def detect_again(
         parts.append(det.transformed(shift))
         offsets.append(int(sel[0]) if len(sel) else 0)
     merged = merge_detections(parts, offsets=offsets) if parts else LaserDetections.empty(with_segments=True)
-    mean_z = float(np.nanmean(f.points[:, 2])) if np.isfinite(f.points[:, 2]).any() else 0.0
-    return merged, _heights(merged, f.points, mean_z)
+    z_all = np.where(np.isfinite(f.points[:, 0]), f.points_z(), np.nan)
+    mean_z = float(np.nanmean(z_all)) if np.isfinite(z_all).any() else 0.0
+    return merged, _heights(merged, z_all, mean_z)
 
 
 def perceive(
@@ -540,7 +582,15 @@ def perceive(
                 job = pool.submit(detect_image, image_detector, pano, columns, zoom)
             t3 = time.perf_counter()
             pf = PerceptionFrame(
-                frame.index, stamp, frame.robot_pose, None, None, laser, laser_z, points, origins, owner
+                frame.index,
+                stamp,
+                frame.robot_pose,
+                None,
+                None,
+                laser,
+                laser_z,
+                origins,
+                *compact_beams(points, owner, len(origins)),
             )
             pf.beam_clocks = beam_clocks(frame)
             if static_map is not None:

@@ -117,7 +117,7 @@ def label_thesis(
     from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
     from studio.io.sync import SyncReport
     from studio.pipeline.label import LabelRun
-    from studio.pipeline.perceive import PerceptionFrame, laser_in_base, require_camera_pose
+    from studio.pipeline.perceive import PerceptionFrame, compact_beams, laser_in_base, require_camera_pose
     from studio.track.base import Observations
     from studio.track.thesis import ThesisTracker
 
@@ -192,9 +192,8 @@ def label_thesis(
                         None,
                         laser,
                         laser_z,
-                        points,
                         origins,
-                        owner,
+                        *compact_beams(points, owner, len(origins)),
                     ),
                 )
             if progress is not None:

@@ -189,8 +189,8 @@ class RunLogger:
         for sib in frame.scans:
             self._log_sensor(ep.entity_name(sib.topic), sib.sensor_pose)
 
-        points = np.asarray(pf.points, dtype=np.float32).reshape(-1, 3)
-        owner = np.asarray(pf.origin_of_point).reshape(-1)
+        points = np.c_[pf.points, pf.points_z()].astype(np.float32)
+        owner = pf.origin_of_point
         valid = np.isfinite(points[:, 0])
         scan_topics = [s.topic for s in frame.scans]
         per_topic: dict[str, NDArray[np.float32]] = {}

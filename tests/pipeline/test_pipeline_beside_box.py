@@ -38,7 +38,7 @@ def _frames() -> list[PerceptionFrame]:
     out = []
     for k in range(N):
         image = _one_box() if k % 2 == 0 else None
-        no_points = (np.zeros((0, 3), np.float32), np.zeros((1, 2)), np.zeros(0, np.int16))
+        no_points = (np.zeros((1, 2)), np.zeros((0, 2), np.float32), np.zeros(1, np.int32), np.zeros((1, 3)))
         out.append(
             PerceptionFrame(k, k * 100_000_000, Pose2(), image, None, laser, np.full(2, 0.3), *no_points)
         )

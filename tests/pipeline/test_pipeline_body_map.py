@@ -8,7 +8,7 @@ import numpy as np
 from studio.detect.laser import KIND_BLOB, LaserDetections
 from studio.geometry.se import Pose2
 from studio.pipeline.label import _static_masks
-from studio.pipeline.perceive import PerceptionFrame
+from studio.pipeline.perceive import PerceptionFrame, compact_beams
 
 POST = np.array([0.3, 0.2])  # a mast strut in front scanner 0's view, hidden from scanner 1
 
@@ -30,8 +30,8 @@ def _frame(k: int) -> PerceptionFrame:
         np.array([POST, wall[:8].mean(0)]), np.full(2, 0.9), np.full(2, KIND_BLOB), np.full(2, 0.1), segs
     )
     return PerceptionFrame(
-        k, k * 100_000_000, Pose2(0.1 * k, 0.0, 0.0), None, None, laser, np.full(2, 0.3), pts,
-        np.array([[0.2, 0.0], [-0.2, 0.0]]), owner,
+        k, k * 100_000_000, Pose2(0.1 * k, 0.0, 0.0), None, None, laser, np.full(2, 0.3),
+        np.array([[0.2, 0.0], [-0.2, 0.0]]), *compact_beams(pts, owner, 2),
     )  # fmt: skip
 
 

@@ -35,7 +35,7 @@ def _frames(boxed: np.ndarray) -> list[PerceptionFrame]:
     laser = LaserDetections(
         PERSON[None].copy(), np.full(1, 0.8), np.full(1, KIND_PAIR), np.full(1, 0.2), (np.zeros(0, int),)
     )
-    no_points = (np.zeros((0, 3), np.float32), np.zeros((1, 2)), np.zeros(0, np.int16))
+    no_points = (np.zeros((1, 2)), np.zeros((0, 2), np.float32), np.zeros(1, np.int32), np.zeros((1, 3)))
     return [
         PerceptionFrame(k, k * 100_000_000, Pose2(), _box_over(boxed) if k % 2 == 0 else None, None, laser,
                         np.full(1, 0.3), *no_points)

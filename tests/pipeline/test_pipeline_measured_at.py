@@ -14,7 +14,7 @@ from studio.geometry import EquirectCamera
 from studio.geometry.se import Pose2, Pose3
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import _to_odom, fuse_all
-from studio.pipeline.perceive import PerceptionFrame
+from studio.pipeline.perceive import PerceptionFrame, compact_beams
 
 CAMERA = EquirectCamera(1920, 960, Pose3.from_xyz_rpy(0.0, 0.0, 1.2, 0.0, 0.0, 0.0))
 WALKER = np.array([3.0, 0.0])  # the laser sees them (and the camera)
@@ -44,7 +44,9 @@ def _frame(clocks: np.ndarray | None) -> PerceptionFrame:
     )
     image = ImageDetections(np.array([_box(WALKER), _box(SEEN)]), np.array([0.9, 0.9]), None, 1920, 960)
     owner = np.r_[np.zeros(12), np.ones(2)].astype(np.int16)  # the legs in one scan, the wall in another
-    f = PerceptionFrame(0, 0, Pose2(), image, None, laser, np.full(1, 0.3), pts, np.zeros((2, 2)), owner)
+    f = PerceptionFrame(
+        0, 0, Pose2(), image, None, laser, np.full(1, 0.3), np.zeros((2, 2)), *compact_beams(pts, owner, 2)
+    )
     f.beam_clocks = clocks
     return f
 

@@ -13,7 +13,7 @@ from studio.detect.laser import KIND_PAIR, get_laser_detector
 from studio.geometry.se import Pose2
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all
-from studio.pipeline.perceive import PerceptionFrame, detect_again
+from studio.pipeline.perceive import PerceptionFrame, compact_beams, detect_again
 
 TABLE_LEG = (2.0, 0.5, 0.05)  # x, y, radius: as thick as a person's leg at scan height
 PILLAR = (6.0, 0.0, 1.5)  # behind: the laser sees the floor where the person will stand free
@@ -32,8 +32,8 @@ def _frames() -> list[PerceptionFrame]:
             legs = [(STAND[0] - 0.07, STAND[1], 0.06), (STAND[0] + 0.12, STAND[1], 0.06)]
         pts = scan([TABLE_LEG, PILLAR, *legs])
         f = PerceptionFrame(
-            k, k * 100_000_000, Pose2(), None, None, None, np.zeros(0), pts, np.zeros((1, 2)),
-            np.zeros(len(pts), np.int16),
+            k, k * 100_000_000, Pose2(), None, None, None, np.zeros(0), np.zeros((1, 2)),
+            *compact_beams(pts, np.zeros(len(pts)), 1),
         )  # fmt: skip
         laser, z = detect_again(f, detector)
         f.laser, f.laser_z = laser, z

@@ -12,7 +12,7 @@ from studio.detect.laser.static_map import StaticMap
 from studio.geometry.se import Pose2
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import _EMPTY_LEG_SCORE, _pairs_on_empty, fuse_all
-from studio.pipeline.perceive import PerceptionFrame, detect_again, odom_scans
+from studio.pipeline.perceive import PerceptionFrame, compact_beams, detect_again, odom_scans
 
 ANGLES = np.radians(np.arange(-135.0, 135.0, 0.25))
 WALL_Y = 2.0
@@ -47,7 +47,15 @@ def _frame(i: int, pose: Pose2, pts: np.ndarray, laser=None, z=None) -> Percepti
     """Frame ``i`` (10 Hz) of one scanner at the base frame's origin."""
     z = np.zeros(0) if z is None else z
     return PerceptionFrame(
-        i, i * 100_000_000, pose, None, None, laser, z, pts, np.zeros((1, 2)), np.zeros(len(pts), np.int16)
+        i,
+        i * 100_000_000,
+        pose,
+        None,
+        None,
+        laser,
+        z,
+        np.zeros((1, 2)),
+        *compact_beams(pts, np.zeros(len(pts)), 1),
     )
 
 

@@ -21,7 +21,7 @@ from studio.detect.laser.classical import ClassicalLaserDetector
 from studio.geometry.se import Pose2
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all, track_all
-from studio.pipeline.perceive import PerceptionFrame, detect_again
+from studio.pipeline.perceive import PerceptionFrame, compact_beams, detect_again
 
 N = 25  # frames at 10 Hz, 1.2 → 3.6 m at 1 m/s
 WALL = (8.0, 0.0, 1.0)
@@ -43,8 +43,8 @@ def _walk(*, remember: bool) -> list[PerceptionFrame]:
         legs = [(c[0] + s * stride, c[1] - s * 0.03, 0.06) for c in _truth(k) for s in (1.0, -1.0)]
         pts = scan([WALL, *legs])
         f = PerceptionFrame(
-            k, k * 100_000_000, Pose2(), None, None, None, np.zeros(0), pts, np.zeros((1, 2)),
-            np.zeros(len(pts), np.int16),
+            k, k * 100_000_000, Pose2(), None, None, None, np.zeros(0), np.zeros((1, 2)),
+            *compact_beams(pts, np.zeros(len(pts)), 1),
         )  # fmt: skip
         f.laser, f.laser_z = detect_again(f, detector, memory=memory)
         out.append(f)

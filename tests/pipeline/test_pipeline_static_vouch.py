@@ -13,7 +13,7 @@ from studio.geometry import EquirectCamera
 from studio.geometry.se import Pose2, Pose3
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import fuse_all
-from studio.pipeline.perceive import PerceptionFrame
+from studio.pipeline.perceive import PerceptionFrame, compact_beams
 
 CAMERA = EquirectCamera(1920, 960, Pose3.from_xyz_rpy(0.0, 0.0, 1.2, 0.0, 0.0, 0.0))
 PERSON = np.array([3.0, 0.0])  # standing still, straight ahead
@@ -46,8 +46,8 @@ def _frame(k: int, with_image: bool) -> PerceptionFrame:
         box = np.array([[*uv.min(axis=0), *uv.max(axis=0)]])
         image = ImageDetections(box, np.array([0.9]), None, 1920, 960)
     return PerceptionFrame(
-        k, k * 100_000_000, Pose2(), image, None, laser, np.full(2, 0.3), pts, np.zeros((1, 2)),
-        np.zeros(len(pts), np.int16),
+        k, k * 100_000_000, Pose2(), image, None, laser, np.full(2, 0.3), np.zeros((1, 2)),
+        *compact_beams(pts, np.zeros(len(pts)), 1),
     )  # fmt: skip
 
 
@@ -108,9 +108,8 @@ def test_a_box_on_someone_walking_past_does_not_vouch_for_the_chair_beside_them(
                 None,
                 laser,
                 np.full(2, 0.3),
-                pts,
                 np.zeros((1, 2)),
-                np.zeros(len(pts), np.int16),
+                *compact_beams(pts, np.zeros(len(pts)), 1),
             )
         )
     out = fuse_all(frames, CAMERA, LabelOptions(), static_map=smap, body_maps=[])

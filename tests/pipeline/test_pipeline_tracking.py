@@ -36,7 +36,13 @@ def _camera_only_run(fps: float, period_s: float, seconds: float = 4.0):
             )  # fmt: skip
         else:
             obs = PersonObservations.concat([])
-        no_scan = (np.zeros(0), np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
+        no_scan = (
+            np.zeros(0),
+            np.zeros((0, 2)),
+            np.zeros((0, 2), np.float32),
+            np.zeros(0, np.int32),
+            np.zeros((0, 3)),
+        )
         frames.append(PerceptionFrame(k, t, pose, None, None, None, *no_scan))
         fused.append(FrameResult(k, t, pose, obs, None))
     return frames, fused
@@ -116,7 +122,13 @@ def test_colours_of_a_box_with_someone_in_front_do_not_reach_the_tracker() -> No
             np.array([0, 1]),
         )  # fmt: skip
         hidden = None if k % 2 == 0 else np.array([True]) if k == 5 else np.array([True, False])
-        no_scan = (np.zeros(0), np.zeros((0, 3), np.float32), np.zeros((0, 2)), np.zeros(0, np.int16))
+        no_scan = (
+            np.zeros(0),
+            np.zeros((0, 2)),
+            np.zeros((0, 2), np.float32),
+            np.zeros(0, np.int32),
+            np.zeros((0, 3)),
+        )
         frames.append(PerceptionFrame(k, t, pose, None, colours, None, *no_scan))
         fused.append(FrameResult(k, t, pose, obs, None, colours_hidden=hidden))
     seen = []

@@ -31,7 +31,7 @@ def _stamp(k: int) -> int:
 
 
 def _frames() -> list[PerceptionFrame]:
-    no_points = (np.zeros((0, 3), np.float32), np.zeros((1, 2)), np.zeros(0, np.int16))
+    no_points = (np.zeros((1, 2)), np.zeros((0, 2), np.float32), np.zeros(1, np.int32), np.zeros((1, 3)))
     frames = []
     for k in range(N):
         xy = np.array([_walker(k), STANDS])
@@ -131,7 +131,7 @@ def test_a_leg_of_a_split_pair_is_where_its_pair_was() -> None:
     from studio.track.base import TrackFrame, TrackPoint, TrackResult
 
     frames = []
-    no_points = (np.zeros((0, 3), np.float32), np.zeros((1, 2)), np.zeros(0, np.int16))
+    no_points = (np.zeros((1, 2)), np.zeros((0, 2), np.float32), np.zeros(1, np.int32), np.zeros((1, 3)))
     for k in range(N):
         xy = _walker(k)[None]
         legs = np.array([[xy[0] + [0.0, 0.1], xy[0] - [0.0, 0.1]]])

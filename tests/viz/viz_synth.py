@@ -20,6 +20,7 @@ from studio.labels.base import LabelFrame, LabelPerson
 from studio.labels.formats import write_labels
 from studio.pipeline.base import FrameResult
 from studio.pipeline.label import LabelRun, PerceptionFrame
+from studio.pipeline.perceive import compact_beams
 
 W, H = 128, 64
 N_FRAMES = 6
@@ -102,9 +103,8 @@ def build(tmp: Path, *, with_gt: bool = True) -> Synthetic:
             None,
             laser,
             np.array([0.3, 0.3]),
-            np.concatenate(pts),
             np.array([s.sensor_pose.t[:2] for s in scans]),
-            np.concatenate(owner),
+            *compact_beams(np.concatenate(pts), np.concatenate(owner), len(scans)),
         )
         frames.append(frame)
         percs.append(pf)
