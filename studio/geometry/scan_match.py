@@ -77,7 +77,7 @@ class ScanMatchConfig:
     max_correction: float = 0.3
     max_correction_yaw: float = np.radians(5.0)
     every: int = 1
-    normal_neighbours: int = 6
+    normal_neighbours: int = 4
     normal_radius: float = 0.3
     max_flatness: float = 0.3
 
