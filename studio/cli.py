@@ -96,7 +96,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("inspect", help="topics, counts, rates, TF frames and sync statistics of a recording")
     p.add_argument("recording", help=_RECORDING)
-    p.add_argument("--rig", default=None, help="rig.yaml: also report frame synchronisation for this rig")
+    p.add_argument(
+        "--rig",
+        default=None,
+        help="rig.yaml: also report frame synchronisation and sensor poses for this rig (without: a rig.yaml "
+        "to start from)",
+    )
 
     p = sub.add_parser("label", help="auto-label people's positions and identities in a recording")
     p.add_argument("recording", help=_RECORDING)

@@ -1,4 +1,5 @@
-"""``studio inspect RECORDING [--rig RIG]``: topics, types, counts, rates, time span, TF tree, sync stats."""
+"""``studio inspect RECORDING [--rig RIG]``: topics, types, counts, rates, time span, TF tree, sync stats;
+without a rig, a rig.yaml to start from (:func:`draft_rig`)."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from studio.io.base import RawMessage
 from studio.io.decode import norm_frame, stamp_ns_of
 from studio.io.reader import Recording
 
-__all__ = ["describe_recording", "run"]
+__all__ = ["describe_recording", "draft_rig", "run"]
 
 
 def _utc(ns: int) -> str:
@@ -204,6 +205,10 @@ def _report(args: argparse.Namespace) -> None:
     with open_recording(args.recording) as rec:
         for line in describe_recording(rec):
             print(line, flush=True)
+        if rig is None:
+            print()
+            for line in draft_rig(rec):
+                print(line)
         if rig is not None:
             from tqdm import tqdm
 
@@ -221,6 +226,106 @@ def _report(args: argparse.Namespace) -> None:
             print(f"sensor poses in '{rig.base_frame}' (x y z m, roll pitch yaw °):")
             for line in _pose_lines(rec, rig):
                 print(f"  {line}")
+
+
+def _first_of(rec: Recording, topic: str) -> tuple[RawMessage, Any] | None:
+    """The first record of ``topic`` and its decoded message (None when it has none or cannot decode)."""
+    raw = next(iter(rec.messages([topic])), None)
+    if raw is None:
+        return None
+    try:
+        return raw, rec.decode(raw)
+    except RecordingError:  # a draft skips what it cannot read; the report above says more
+        return None
+
+
+def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
+    """A ``rig.yaml`` to start from, as YAML lines: the recording's scanners, odometry and panorama, a
+    ``base_frame`` that places them, and what it could not place as comments.
+
+    The base frame is the odometry's robot frame, else ``base_link`` or ``base_footprint`` of the TF tree,
+    else the first scanner's own frame. A sensor the TF tree (or being the base frame) places needs no pose;
+    one it cannot place is left commented out, with the pose to measure (a wrong pose labels wrong people).
+    """
+    tf = TfBuffer.from_recording(rec) if tf is None else tf
+    by_kind: dict[str, list[str]] = {}
+    for name, info in rec.topics.items():
+        by_kind.setdefault(_kind(info.msgtype), []).append(name)
+    scans: list[tuple[str, str]] = []  # (topic, frame)
+    for topic in by_kind.get("LaserScan", []):
+        first = _first_of(rec, topic)
+        if first is not None:
+            scans.append((topic, decode_scan(first[1], first[0].log_ns).frame_id))
+    odom_topic, odom_child = None, ""
+    for topic in sorted(by_kind.get("Odometry", []), key=lambda t: (t.strip("/") != "odom", t)):
+        first = _first_of(rec, topic)
+        if first is not None:
+            odom_topic, odom_child = topic, decode_odometry(first[1], first[0].log_ns).child_frame_id
+            break
+    frames = set(tf.frames())
+    neighbours: dict[str, set[str]] = {}
+    for e in tf.edges():
+        neighbours.setdefault(e.parent, set()).add(e.child)
+        neighbours.setdefault(e.child, set()).add(e.parent)
+
+    def tree_of(frame: str) -> set[str]:
+        seen, todo = {frame}, [frame]
+        while todo:
+            for n in neighbours.get(todo.pop(), ()):
+                if n not in seen:
+                    seen.add(n)
+                    todo.append(n)
+        return seen
+
+    if odom_child and (not frames or odom_child in frames):
+        base = odom_child
+    else:
+        base = next((f for f in ("base_link", "base_footprint") if f in frames), scans[0][1] if scans else "")
+    placed = tree_of(base) if base else set()
+    lines = [
+        "# a rig.yaml to start from: check it (README, 'Your own robot'), then",
+        "# studio inspect REC --rig it",
+    ]
+    lines.append(f"base_frame: {base or 'base_link  # name the robot frame'}")
+    if odom_topic is not None:
+        lines.append(f"odometry: {{topic: {odom_topic}}}")
+    elif "odom" in placed and base != "odom":
+        lines.append("odometry: {tf: odom}")
+    else:
+        lines.append("# no odometry: scan matching gives the motion")
+    missing = "{x: 0.0, y: 0.0, z: 0.0, roll: 0.0, pitch: 0.0, yaw: 0.0}"
+    for topic in by_kind.get("CompressedImage", []) + by_kind.get("Image", []):
+        first = _first_of(rec, topic)
+        try:
+            pano = None if first is None else decode_panorama(first[1], first[0].log_ns)
+        except (RecordingError, ValueError):  # not an image this reader decodes: not the panorama
+            pano = None
+        if pano is None or pano.image.shape[1] != 2 * pano.image.shape[0]:
+            continue  # not an equirectangular panorama
+        if pano.frame_id in placed:
+            lines += ["camera:", f"  topic: {topic}"]
+        else:
+            lines += [
+                f"# camera: its frame '{pano.frame_id}' is not in the TF tree of '{base}': measure its",
+                "# pose (or studio calibrate), then",
+                "# camera:",
+                f"#   topic: {topic}",
+                f"#   pose: {missing}",
+            ]
+        break
+    lines.append("lasers:" if any(frame in placed for _, frame in scans) else "lasers: []  # none placed")
+    for topic, frame in scans:
+        if frame in placed:
+            lines.append(f"  - topic: {topic}")
+        else:
+            lines += [
+                f"  # its frame '{frame}' is not in the TF tree of '{base}': measure its pose, then",
+                f"  # - topic: {topic}",
+                f"  #   pose: {missing}",
+            ]
+    for topic in by_kind.get("PointCloud2", []):
+        lines.append(f"  # - topic: {topic}    # a 3-D lidar: slice it, cloud: {{min_z, max_z}} in its frame")
+    return lines
 
 
 def _pose_lines(rec: Recording, rig: Any) -> list[str]:

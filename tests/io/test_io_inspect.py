@@ -130,3 +130,50 @@ def test_inspect_says_when_header_stamps_are_unset(
             w.write_scan("/scan", make_scan(0, "laser"), log_ns=T0 + k * 100_000_000)
     assert main(["inspect", str(p)]) == 0
     assert "header stamps: unset (0): the log time stands in for them" in capsys.readouterr().out
+
+
+def _draft(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Path:
+    """``studio inspect`` without a rig ends with a rig to start from: written out as it prints it."""
+    assert main(["inspect", str(recording)]) == 0
+    out = capsys.readouterr().out
+    draft = out[out.index("# a rig.yaml to start from") :]
+    path = tmp_path / "draft.yaml"
+    path.write_text(draft)
+    return path
+
+
+def test_the_rig_to_start_from_places_every_sensor_of_a_recording_with_tf(
+    synthetic: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from studio.io import count_frames, load_rig, open_recording, resolve_sensor_poses
+
+    rig = load_rig(_draft(synthetic, tmp_path, capsys))
+    assert rig.base_frame == "base_link"
+    assert rig.odometry is not None
+    assert rig.odometry.topic == "/odom"
+    assert rig.camera is not None
+    assert rig.camera.topic == "/camera/image/compressed"
+    assert sorted(la.topic for la in rig.lasers) == ["/scan_back", "/scan_front"]
+    with open_recording(synthetic) as rec:
+        placed = resolve_sensor_poses(rec, rig)  # every pose from the TF tree
+        assert placed.camera is not None
+        assert placed.camera.pose is not None
+        assert all(la.pose is not None for la in placed.lasers)
+        assert count_frames(rec, rig) == 40
+
+
+def test_the_rig_to_start_from_leaves_out_scanners_it_cannot_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from studio.io import load_rig
+
+    path = _draft(bag("negative_2.bag"), tmp_path, capsys)  # three scanners, no TF, no odometry
+    rig = load_rig(path)
+    assert rig.base_frame == "left_laser"
+    assert rig.odometry is None
+    assert rig.camera is None
+    assert [la.topic for la in rig.lasers] == ["/left_scan"]
+    text = path.read_text()
+    assert "# - topic: /rear_scan" in text
+    assert "# - topic: /right_scan" in text
+    assert "frame 'rear_laser' is not in the TF tree of 'left_laser'" in text
