@@ -169,6 +169,27 @@ def compact_beams(
     return np.ascontiguousarray(points[:, :2]), sizes, planes
 
 
+def laser_frame(
+    frame: Any,
+    stamp_ns: int,
+    beams: tuple[LaserDetections | None, FloatArray, NDArray[np.float32], FloatArray, Any],
+) -> PerceptionFrame:
+    """The :class:`PerceptionFrame` of ``frame`` (a :class:`studio.io.Frame`) from :func:`laser_in_base`'s
+    output ``beams`` (``laser`` None: no laser detector ran), before any image detections."""
+    laser, laser_z, points, origins, owner = beams
+    return PerceptionFrame(
+        frame.index,
+        stamp_ns,
+        frame.robot_pose,
+        None,
+        None,
+        laser,
+        laser_z,
+        origins,
+        *compact_beams(points, owner, len(origins)),
+    )
+
+
 def remembers_legs(detector: Any) -> bool:
     """Whether ``detector`` pairs legs with the scanner's last scan (the classical one does)."""
     return callable(getattr(detector, "detect_remembering", None))
@@ -581,17 +602,7 @@ def perceive(
                     zoom = far_bearings(camera, laser.xy, laser_z)
                 job = pool.submit(detect_image, image_detector, pano, columns, zoom)
             t3 = time.perf_counter()
-            pf = PerceptionFrame(
-                frame.index,
-                stamp,
-                frame.robot_pose,
-                None,
-                None,
-                laser,
-                laser_z,
-                origins,
-                *compact_beams(points, owner, len(origins)),
-            )
+            pf = laser_frame(frame, stamp, (laser, laser_z, points, origins, owner))
             pf.beam_clocks = beam_clocks(frame)
             if static_map is not None:
                 pf.open_ends, pf.open_owner = open_beams_in_base(frame, beam_returns)

@@ -117,7 +117,7 @@ def label_thesis(
     from studio.io import count_frames, iter_frames, open_recording, resolve_sensor_poses
     from studio.io.sync import SyncReport
     from studio.pipeline.label import LabelRun
-    from studio.pipeline.perceive import PerceptionFrame, compact_beams, laser_in_base, require_camera_pose
+    from studio.pipeline.perceive import laser_frame, laser_in_base, require_camera_pose
     from studio.track.base import Observations
     from studio.track.thesis import ThesisTracker
 
@@ -182,20 +182,7 @@ def label_thesis(
             t["fusion"] += time.perf_counter() - t3
             fused.append(FrameResult(frame.index, stamp, frame.robot_pose, obs))
             if on_frame is not None:
-                on_frame(
-                    frame,
-                    PerceptionFrame(
-                        frame.index,
-                        stamp,
-                        frame.robot_pose,
-                        None,
-                        None,
-                        laser,
-                        laser_z,
-                        origins,
-                        *compact_beams(points, owner, len(origins)),
-                    ),
-                )
+                on_frame(frame, laser_frame(frame, stamp, (laser, laser_z, points, origins, owner)))
             if progress is not None:
                 progress(len(fused), total)
             tick = time.perf_counter()

@@ -15,6 +15,14 @@ from studio.pipeline.label import PerceptionFrame, track_all, tracking_config
 from studio.track.offline import track_offline
 
 T0 = 1_700_000_000_000_000_000
+# laser_z, origins, points, scan sizes, scan planes of a frame without scans
+NO_SCAN = (
+    np.zeros(0),
+    np.zeros((0, 2)),
+    np.zeros((0, 2), np.float32),
+    np.zeros(0, np.int32),
+    np.zeros((0, 3)),
+)
 
 
 def _camera_only_run(fps: float, period_s: float, seconds: float = 4.0):
@@ -36,14 +44,7 @@ def _camera_only_run(fps: float, period_s: float, seconds: float = 4.0):
             )  # fmt: skip
         else:
             obs = PersonObservations.concat([])
-        no_scan = (
-            np.zeros(0),
-            np.zeros((0, 2)),
-            np.zeros((0, 2), np.float32),
-            np.zeros(0, np.int32),
-            np.zeros((0, 3)),
-        )
-        frames.append(PerceptionFrame(k, t, pose, None, None, None, *no_scan))
+        frames.append(PerceptionFrame(k, t, pose, None, None, None, *NO_SCAN))
         fused.append(FrameResult(k, t, pose, obs, None))
     return frames, fused
 
@@ -122,14 +123,7 @@ def test_colours_of_a_box_with_someone_in_front_do_not_reach_the_tracker() -> No
             np.array([0, 1]),
         )  # fmt: skip
         hidden = None if k % 2 == 0 else np.array([True]) if k == 5 else np.array([True, False])
-        no_scan = (
-            np.zeros(0),
-            np.zeros((0, 2)),
-            np.zeros((0, 2), np.float32),
-            np.zeros(0, np.int32),
-            np.zeros((0, 3)),
-        )
-        frames.append(PerceptionFrame(k, t, pose, None, colours, None, *no_scan))
+        frames.append(PerceptionFrame(k, t, pose, None, colours, None, *NO_SCAN))
         fused.append(FrameResult(k, t, pose, obs, None, colours_hidden=hidden))
     seen = []
 
