@@ -4,7 +4,9 @@ without a rig, a rig.yaml to start from (:func:`draft_rig`)."""
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
@@ -228,15 +230,27 @@ def _report(args: argparse.Namespace) -> None:
                 print(f"  {line}")
 
 
-def _first_of(rec: Recording, topic: str) -> tuple[RawMessage, Any] | None:
-    """The first record of ``topic`` and its decoded message (None when it has none or cannot decode)."""
-    raw = next(iter(rec.messages([topic])), None)
-    if raw is None:
-        return None
-    try:
-        return raw, rec.decode(raw)
-    except RecordingError:  # a draft skips what it cannot read; the report above says more
-        return None
+def _first_decoded(rec: Recording, topic: str, decode: Any, tries: int = 20) -> Any:
+    """The first of the first ``tries`` messages of ``topic`` that ``decode(msg, log_ns)`` reads (None: none;
+    a driver's first messages can be bad, e.g. an odometry quaternion of zeros at start-up)."""
+    for k, raw in enumerate(rec.messages([topic])):
+        if k >= tries:
+            break
+        try:
+            return decode(rec.decode(raw), raw.log_ns)
+        except (RecordingError, ValueError):
+            continue
+    return None
+
+
+_YAML_WORDS = {"null", "true", "false", "yes", "no", "on", "off", "y", "n", "~"}
+
+
+def _scalar(name: str) -> str:
+    """``name`` as a YAML scalar: as it is when YAML reads it back as that string, else quoted."""
+    if re.fullmatch(r"[A-Za-z_/][A-Za-z0-9_/.\-]*", name) and name.lower() not in _YAML_WORDS:
+        return name
+    return json.dumps(name)  # JSON strings are YAML
 
 
 def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
@@ -245,7 +259,9 @@ def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
 
     The base frame is the odometry's robot frame, else ``base_link`` or ``base_footprint`` of the TF tree,
     else the first scanner's own frame. A sensor the TF tree (or being the base frame) places needs no pose;
-    one it cannot place is left commented out, with the pose to measure (a wrong pose labels wrong people).
+    one it cannot place is left commented out, with the pose to measure (a wrong pose labels wrong people),
+    unless nothing else is placed: then the first scanner is written with a zero pose marked to measure, so
+    the draft loads.
     """
     tf = TfBuffer.from_recording(rec) if tf is None else tf
     by_kind: dict[str, list[str]] = {}
@@ -253,14 +269,21 @@ def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
         by_kind.setdefault(_kind(info.msgtype), []).append(name)
     scans: list[tuple[str, str]] = []  # (topic, frame)
     for topic in by_kind.get("LaserScan", []):
-        first = _first_of(rec, topic)
-        if first is not None:
-            scans.append((topic, decode_scan(first[1], first[0].log_ns).frame_id))
+        scan = _first_decoded(rec, topic, decode_scan)
+        if scan is not None:
+            scans.append((topic, scan.frame_id))
     odom_topic, odom_child = None, ""
-    for topic in sorted(by_kind.get("Odometry", []), key=lambda t: (t.strip("/") != "odom", t)):
-        first = _first_of(rec, topic)
-        if first is not None:
-            odom_topic, odom_child = topic, decode_odometry(first[1], first[0].log_ns).child_frame_id
+    odom_topics = [t for kind in ("Odometry", "PoseInFrame", "PoseStamped") for t in by_kind.get(kind, [])]
+    for topic in sorted(odom_topics, key=lambda t: t.strip("/") != "odom"):
+        odom = _first_decoded(rec, topic, decode_odometry)
+        if odom is not None:
+            odom_topic, odom_child = topic, odom.child_frame_id
+            break
+    pano_topic, pano_frame = None, ""
+    for topic in [t for kind in ("CompressedImage", "Image", "RawImage") for t in by_kind.get(kind, [])]:
+        pano = _first_decoded(rec, topic, decode_panorama)
+        if pano is not None and pano.image.shape[1] == 2 * pano.image.shape[0]:  # equirectangular
+            pano_topic, pano_frame = topic, pano.frame_id
             break
     frames = set(tf.frames())
     neighbours: dict[str, set[str]] = {}
@@ -280,51 +303,57 @@ def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
     if odom_child and (not frames or odom_child in frames):
         base = odom_child
     else:
-        base = next((f for f in ("base_link", "base_footprint") if f in frames), scans[0][1] if scans else "")
-    placed = tree_of(base) if base else set()
+        first_frame = next((f for _, f in scans if f), "")
+        base = next((f for f in ("base_link", "base_footprint") if f in frames), first_frame)
+    placed = tree_of(base) - {""} if base else set()
     lines = [
         "# a rig.yaml to start from: check it (README, 'Your own robot'), then",
         "# studio inspect REC --rig it",
     ]
-    lines.append(f"base_frame: {base or 'base_link  # name the robot frame'}")
+    lines.append(
+        f"base_frame: {_scalar(base)}" if base else "base_frame: base_link  # no frame names one: name it"
+    )
     if odom_topic is not None:
-        lines.append(f"odometry: {{topic: {odom_topic}}}")
+        lines.append(f"odometry: {{topic: {_scalar(odom_topic)}}}")
     elif "odom" in placed and base != "odom":
         lines.append("odometry: {tf: odom}")
     else:
         lines.append("# no odometry: scan matching gives the motion")
-    missing = "{x: 0.0, y: 0.0, z: 0.0, roll: 0.0, pitch: 0.0, yaw: 0.0}"
-    for topic in by_kind.get("CompressedImage", []) + by_kind.get("Image", []):
-        first = _first_of(rec, topic)
-        try:
-            pano = None if first is None else decode_panorama(first[1], first[0].log_ns)
-        except (RecordingError, ValueError):  # not an image this reader decodes: not the panorama
-            pano = None
-        if pano is None or pano.image.shape[1] != 2 * pano.image.shape[0]:
-            continue  # not an equirectangular panorama
-        if pano.frame_id in placed:
-            lines += ["camera:", f"  topic: {topic}"]
+    zero = "{x: 0.0, y: 0.0, z: 0.0, roll: 0.0, pitch: 0.0, yaw: 0.0}"
+    where = f"in the TF tree of '{base}'" if base else "named"
+    if pano_topic is not None:
+        if pano_frame in placed:
+            lines += ["camera:", f"  topic: {_scalar(pano_topic)}"]
         else:
             lines += [
-                f"# camera: its frame '{pano.frame_id}' is not in the TF tree of '{base}': measure its",
-                "# pose (or studio calibrate), then",
+                f"# camera: its frame '{pano_frame}' is not {where}: measure its pose (or studio",
+                "# calibrate), then",
                 "# camera:",
-                f"#   topic: {topic}",
-                f"#   pose: {missing}",
+                f"#   topic: {_scalar(pano_topic)}",
+                f"#   pose: {zero}",
             ]
-        break
-    lines.append("lasers:" if any(frame in placed for _, frame in scans) else "lasers: []  # none placed")
+    placed_scans = [t for t, frame in scans if frame in placed]
+    guess = None if placed_scans or pano_frame in placed or not scans else scans[0][0]
+    lines.append("lasers:" if placed_scans or guess else "lasers: []  # none could be placed")
     for topic, frame in scans:
         if frame in placed:
-            lines.append(f"  - topic: {topic}")
+            lines.append(f"  - topic: {_scalar(topic)}")
+        elif topic == guess:
+            lines += [
+                f"  # MEASURE the pose of its frame '{frame}' in the base frame: it is not {where}",
+                f"  - topic: {_scalar(topic)}",
+                f"    pose: {zero}",
+            ]
         else:
             lines += [
-                f"  # its frame '{frame}' is not in the TF tree of '{base}': measure its pose, then",
-                f"  # - topic: {topic}",
-                f"  #   pose: {missing}",
+                f"  # its frame '{frame}' is not {where}: measure its pose, then",
+                f"  # - topic: {_scalar(topic)}",
+                f"  #   pose: {zero}",
             ]
     for topic in by_kind.get("PointCloud2", []):
-        lines.append(f"  # - topic: {topic}    # a 3-D lidar: slice it, cloud: {{min_z, max_z}} in its frame")
+        lines.append(
+            f"  # - topic: {_scalar(topic)}    # a 3-D lidar: slice it, cloud: {{min_z, max_z}} in its frame"
+        )
     return lines
 
 

@@ -153,7 +153,10 @@ def compact_beams(
     A 2-D scanner's beams lie in one plane, so their height follows from x, y: exactly for a level scanner
     (one height), to float precision for a tilted one (a least-squares plane through its returns).
     """
-    sizes = np.bincount(np.asarray(owner, np.intp), minlength=n_scanners).astype(np.int32)
+    owner = np.asarray(owner, np.intp)
+    if (np.diff(owner) < 0).any():
+        raise ValueError("compact_beams: the beams must run scanner by scanner")
+    sizes = np.bincount(owner, minlength=n_scanners).astype(np.int32)
     planes = np.zeros((n_scanners, 3))
     start = 0
     for k, n in enumerate(sizes):

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from io_testdata import DATA, bag
 
@@ -177,3 +178,57 @@ def test_the_rig_to_start_from_leaves_out_scanners_it_cannot_place(
     assert "# - topic: /rear_scan" in text
     assert "# - topic: /right_scan" in text
     assert "frame 'rear_laser' is not in the TF tree of 'left_laser'" in text
+
+
+def test_the_rig_to_start_from_loads_when_the_tf_tree_places_no_sensor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from io_testdata import write_synthetic
+
+    from studio.io import load_rig
+
+    rec = write_synthetic(tmp_path / "recording.mcap", tf_lasers=False)  # odometry, but no sensor in TF
+    path = _draft(rec, tmp_path, capsys)
+    rig = load_rig(path)
+    assert rig.base_frame == "base_link"
+    (kept,) = [la.topic for la in rig.lasers]  # the first scanner, its pose to measure
+    other = ({"/scan_front", "/scan_back"} - {kept}).pop()
+    text = path.read_text()
+    assert "# MEASURE the pose of its frame" in text
+    assert f"# - topic: {other}" in text  # the others left out
+    assert "# camera:" in text
+
+
+@pytest.mark.parametrize(
+    "name", ["/scan_front", "laser #1", "laser: front", "*laser", "null", "123", "[a]", "x'y"]
+)
+def test_names_in_the_rig_to_start_from_read_back_as_written(name: str) -> None:
+    import yaml
+
+    from studio.commands.inspect import _scalar
+
+    assert yaml.safe_load(f"k: {_scalar(name)}") == {"k": name}
+
+
+def test_the_rig_to_start_from_skips_a_first_message_that_does_not_decode(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from io_testdata import T0, make_scan
+
+    from studio.io import RecordingWriter, load_rig
+
+    rec = tmp_path / "recording.mcap"
+    with RecordingWriter(rec) as w:
+        t = w.types
+        stamp = t["builtin_interfaces/msg/Time"](sec=T0 // 10**9, nanosec=0)
+        bad = t["sensor_msgs/msg/LaserScan"](
+            header=t["std_msgs/msg/Header"](stamp=stamp, frame_id="laser"),
+            angle_min=0.0, angle_max=0.0, angle_increment=0.0, time_increment=0.0, scan_time=0.0,
+            range_min=0.1, range_max=10.0, ranges=np.ones(5, np.float32), intensities=np.zeros(0, np.float32),
+        )  # fmt: skip
+        w.write_message("/scan", "sensor_msgs/msg/LaserScan", bad, log_ns=T0 - 1)  # a driver starting up
+        for k in range(3):
+            w.write_scan("/scan", make_scan(T0 + k * 100_000_000, "laser"))
+    rig = load_rig(_draft(rec, tmp_path, capsys))
+    assert rig.base_frame == "laser"
+    assert [la.topic for la in rig.lasers] == ["/scan"]

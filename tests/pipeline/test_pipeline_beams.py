@@ -74,6 +74,11 @@ def test_a_scan_with_no_return_keeps_its_beams_and_a_flat_plane() -> None:
     np.testing.assert_array_equal(planes, np.zeros((2, 3)))
 
 
+def test_beams_that_do_not_run_scanner_by_scanner_are_refused() -> None:
+    with pytest.raises(ValueError, match="scanner by scanner"):
+        compact_beams(np.zeros((4, 3), np.float32), np.array([0, 1, 0, 1]), 2)
+
+
 def test_the_kept_beams_take_a_third_less_memory() -> None:
     frame = _frame([LEVEL, TILTED])
     _, _, points, _, owner = laser_in_base(frame, get_laser_detector("classical"))
