@@ -691,6 +691,7 @@ def label_recording(
             )
     t1 = time.perf_counter()
     fused = fuse_all(frames, camera, opts, static_map=info["static_map"], body_maps=info["body_maps"])
+    frames = [f.without_beams() for f in frames]  # tracking needs none: its peak memory is the run's
     t2 = time.perf_counter()
     labels, fused = track_all(frames, fused, opts, has_camera=camera is not None)
     t3 = time.perf_counter()

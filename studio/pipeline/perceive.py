@@ -137,6 +137,11 @@ class PerceptionFrame:
         xy = self.points[sel].astype(np.float64)
         return abc[:, 0] + abc[:, 1] * xy[:, 0] + abc[:, 2] * xy[:, 1]
 
+    def without_beams(self) -> PerceptionFrame:
+        """This frame without its beams (what tracking needs: pass one keeps them until fusion)."""
+        n = len(self.scan_sizes)
+        return replace(self, points=np.zeros((0, 2), np.float32), scan_sizes=np.zeros(n, np.int32))
+
     @property
     def world_pose(self) -> Pose2:
         """The pose the static map and the tracker use: ``track_pose``, else the odometry's."""
