@@ -112,8 +112,8 @@ class PerceptionFrame:
     laser: LaserDetections | None  # base frame, segments index into `points`
     laser_z: FloatArray  # (n_laser,) scan-plane height of each detection in the base frame
     origins: FloatArray  # (S, 2) scanner positions in the base frame
-    # the beams of the frame's scans, as :func:`compact_beams` keeps them (pass one holds every beam until
-    # tracking ends: a plane per scan instead of a height per beam saves a third of that memory):
+    # the beams of the frame's scans, as :func:`compact_beams` keeps them (labeling holds every beam until
+    # fusion ends, then :meth:`without_beams`: a plane per scan instead of a height per beam saves a third):
     # (M, 2) x, y of every beam in the base frame, NaN = no return, scanner by scanner
     points: NDArray[np.float32]
     scan_sizes: NDArray[np.int32]  # (S,) how many of `points` each scanner gave
