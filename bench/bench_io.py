@@ -5,6 +5,7 @@ Usage::
     .venv/bin/python bench/bench_io.py                      # synthetic bags of 20 s and 80 s (flat memory?)
     .venv/bin/python bench/bench_io.py --seconds 30 120     # other lengths
     .venv/bin/python bench/bench_io.py --bag REC --rig RIG  # a given recording
+    .venv/bin/python bench/bench_io.py --ros1               # also as a ROS1 bag, with and without its index
 
 Each measurement runs in a fresh subprocess so that its peak RSS (``VmHWM``) belongs to that run only;
 the baseline is the RSS of the same process after the imports, before reading. Synthetic bags model the
@@ -118,6 +119,28 @@ def synthesize(out: Path, seconds: float) -> tuple[Path, Path]:
     return bag, rig_path
 
 
+def to_ros1(src: Path, dst: Path) -> Path:
+    """``src`` (an MCAP of ROS 2 messages) converted to a ROS1 bag by rosbags (1 MB chunks)."""
+    from rosbags.convert.converter import convert
+    from rosbags.typesys import Stores, get_typestore
+
+    convert(
+        [src],
+        dst,
+        "",
+        1,
+        None,
+        "file",
+        get_typestore(Stores.ROS2_HUMBLE),
+        get_typestore(Stores.ROS1_NOETIC),
+        [],
+        [],
+        [],
+        [],
+    )
+    return dst
+
+
 def _run_child(bag: Path | str, rig: Path | str) -> dict[str, float]:
     proc = subprocess.run(
         [sys.executable, __file__, "--child", str(bag), str(rig)], capture_output=True, text=True, check=True
@@ -140,6 +163,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, nargs="+", default=[20.0, 80.0], help="synthetic lengths")
     ap.add_argument("--keep", action="store_true", help="keep the synthetic bags (in --out)")
     ap.add_argument("--out", default=None, help="folder for the synthetic bags (default: a temporary one)")
+    ap.add_argument(
+        "--ros1",
+        action="store_true",
+        help="also read each synthetic recording as a ROS1 bag, and as the same bag without its index (the "
+        "recorder stopped before it wrote it: read by scanning the chunks)",
+    )
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -158,6 +187,17 @@ def main() -> None:
             bag, rig = synthesize(Path(tmp), s)
             print(f"(wrote {bag.name} in {time.perf_counter() - t:.1f} s)", file=sys.stderr)
             _print(f"synthetic {s:g} s", bag.stat().st_size / 2**20, _run_child(bag, rig))
+            if args.ros1:
+                ros1 = to_ros1(bag, bag.with_suffix(".bag"))
+                _print("  as a ROS1 bag", ros1.stat().st_size / 2**20, _run_child(ros1, rig))
+                cut = ros1.with_name(ros1.stem + "_no_index.bag")
+                data = ros1.read_bytes()
+                cut.write_bytes(data[: int(len(data) * 0.999)])  # the index is the last few KB
+                del data
+                _print("  ROS1, without its index", cut.stat().st_size / 2**20, _run_child(cut, rig))
+                if not args.keep:
+                    ros1.unlink()
+                    cut.unlink()
             if not args.keep:
                 bag.unlink()
 

@@ -174,6 +174,7 @@ def describe_recording(rec: Recording, *, exact_rates: bool | None = None) -> li
     lines = [f"recording: {rec.path} ({kind}, {_size(rec.files)})"]
     if len(rec.files) > 1:
         lines += [f"  {f.name}" for f in rec.files]
+    lines += [f"note: {n}" for n in rec.notes]
     span = rec.duration_ns / 1e9
     if rec.topics and any(t.count for t in rec.topics.values()):
         lines.append(f"time span: {_utc(rec.start_ns)} → {_utc(rec.end_ns)} ({span:.3f} s, log time)")

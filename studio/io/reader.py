@@ -110,6 +110,35 @@ class _RosbagsBackend:
             self.reader.close()
 
 
+def _ros1_backend(files: list[Path]) -> _Backend:
+    """rosbags' reader for indexed bags; where a bag has no index (an unfinished or cut-short recording) or
+    rosbags cannot read its index, every whole message of the bags' chunks
+    (:mod:`studio.io.ros1_unindexed`), when there is one."""
+    from studio.io.ros1_unindexed import UnindexedRos1Backend, is_unindexed_ros1
+
+    if not any(is_unindexed_ros1(f) for f in files):
+        try:
+            return _RosbagsBackend(files, "ros1")
+        except Exception as exc:
+            error = exc
+    else:
+        error = None
+    try:
+        backend = UnindexedRos1Backend(files)
+    except Exception:
+        if error is not None:
+            raise error from None
+        raise
+    if not backend.topics:
+        backend.close()
+        if error is not None:
+            raise error
+        raise RecordingError(f"{files[0]}: no whole message in the bag")
+    if error is not None and not backend.notes:
+        backend.notes.append(f"read without its index, which rosbags could not read: {_reason(error)}")
+    return backend
+
+
 def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
     """Raises :class:`RecordingError` naming the first of ``paths`` (ROS1 bags) that cannot be opened alone;
     returns when each can (the error is then in how they go together)."""
@@ -125,23 +154,14 @@ def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
             ) from exc
 
 
-def _unfinished(bag: Path) -> RecordingError:
-    return RecordingError(
-        f"{bag}: an unfinished ROS1 bag (its recording was interrupted): run `rosbag reindex` on it and "
-        "rename it to .bag, or leave it out of the recording"
-    )
-
-
 def _ros1_bags(folder: Path) -> list[Path]:
-    """The ROS1 bags of a folder recording, in name order (``run_2.bag`` before ``run_10.bag``).
+    """The ROS1 bags of a folder recording, in name order (``run_2.bag`` before ``run_10.bag``), a bag
+    ``rosbag record`` did not finish (``.bag.active``) included.
 
     Raises:
-        RecordingError: no bags, or a bag ``rosbag record`` did not finish (``.bag.active``).
+        RecordingError: no bags.
     """
-    active = sorted(folder.glob("*.bag.active"))
-    if active:
-        raise _unfinished(active[0])
-    bags = [f for f in folder.glob("*.bag") if f.is_file()]
+    bags = [f for f in folder.iterdir() if f.is_file() and f.name.endswith((".bag", ".bag.active"))]
     if not bags:
         raise RecordingError(
             f"{folder}: a folder recording must be a ROS2 bag (with metadata.yaml) or hold ROS1 .bag files"
@@ -159,6 +179,7 @@ class Recording:
         topics: topic name → :class:`TopicInfo` (type and message count).
         start_ns: log time of the first message, ns (0 when empty).
         end_ns: log time of the last message, ns (0 when empty).
+        notes: what a user should know about how it was read (a ROS1 bag read without its index).
     """
 
     def __init__(self, path: Path, kind: Kind, backend: _Backend, files: tuple[Path, ...] = ()) -> None:
@@ -169,6 +190,7 @@ class Recording:
         self.topics: dict[str, TopicInfo] = dict(backend.topics)
         self.start_ns: int = backend.start_ns
         self.end_ns: int = backend.end_ns
+        self.notes: list[str] = list(getattr(backend, "notes", []))
 
     def __repr__(self) -> str:
         return f"Recording({str(self.path)!r}, kind={self.kind!r}, topics={len(self.topics)})"
@@ -304,10 +326,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             else:
                 files = _ros1_bags(p)
                 kind = "ros1"
-        elif p.suffix == ".bag":
+        elif p.suffix == ".bag" or p.name.endswith(".bag.active"):
             kind = "ros1"
-        elif p.name.endswith(".bag.active"):
-            raise _unfinished(p)
         elif p.suffix == ".db3":
             kind = "ros2"
         elif p.suffix == ".mcap":
@@ -322,6 +342,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             from studio.io.mcap_backend import McapBackend
 
             backend = McapBackend(p)
+        elif kind == "ros1":
+            backend = _ros1_backend(files)
         else:
             backend = _RosbagsBackend(files, kind)
     except RecordingError:

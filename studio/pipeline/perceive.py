@@ -561,7 +561,7 @@ def perceive(
         open_recording(recording) as rec,
         ThreadPoolExecutor(workers, thread_name_prefix="studio-image") as pool,
     ):
-        notes = []
+        notes = list(rec.notes)
         if rig.camera is not None and not use_camera and not rec.has_topic(rig.camera.topic):
             # --sources laser on a recording without the rig's camera: label it as a laser-only rig does
             notes.append(

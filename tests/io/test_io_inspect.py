@@ -84,14 +84,23 @@ def _one_error_line(args: list[str]) -> str:
     return lines[0]
 
 
-def test_inspect_truncated_bag_exits_2_with_one_line(tmp_path: Path) -> None:
+def test_inspect_truncated_bag_reads_its_whole_messages_and_says_so(tmp_path: Path, capsys) -> None:
     data = bag("demo_stationary_simple_environment.bag").read_bytes()
     cut = tmp_path / "cut.bag"
     cut.write_bytes(data[: len(data) // 3])
-    line = _one_error_line(["inspect", str(cut)])
+    assert main(["inspect", str(cut)]) == 0
+    out = capsys.readouterr().out
+    assert f"note: {cut}: a ROS1 bag without its index" in out
+    assert "/scan  sensor_msgs/msg/LaserScan" in out
+
+
+def test_inspect_corrupt_bag_exits_2_with_one_line(tmp_path: Path) -> None:
+    data = bag("demo_stationary_simple_environment.bag").read_bytes()
+    bad = tmp_path / "bad.bag"
+    bad.write_bytes(data[:4200] + bytes(range(256)) * 40)  # the bag header, then no record
+    line = _one_error_line(["inspect", str(bad)])
     assert line.startswith("studio inspect: error:")
-    assert "cut.bag" in line
-    assert "truncated or corrupt" in line
+    assert "bad.bag" in line
 
 
 @pytest.mark.parametrize(

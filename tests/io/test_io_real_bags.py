@@ -163,17 +163,31 @@ def _read_all(path: Path) -> int:
     return n
 
 
-@pytest.mark.parametrize("fraction", [0.0, 0.1, 0.5, 0.99])
-def test_truncated_bag(tmp_path: Path, fraction: float) -> None:
-    src = bag("negative_2.bag")
-    data = src.read_bytes()
+def test_an_empty_bag_file_is_one_clear_error(tmp_path: Path) -> None:
     p = tmp_path / "cut.bag"
-    p.write_bytes(data[: int(len(data) * fraction)])
+    p.write_bytes(b"")
     with pytest.raises(RecordingError) as info:
         _read_all(p)
     msg = str(info.value)
     assert str(p) in msg
     assert "\n" not in msg
+
+
+@pytest.mark.parametrize("fraction", [0.1, 0.5, 0.99])
+def test_truncated_bag_reads_as_far_as_it_goes(tmp_path: Path, fraction: float) -> None:
+    """A bag cut short has lost its index: its whole messages are read (``studio.io.ros1_unindexed``)."""
+    src = bag("negative_2.bag")
+    data = src.read_bytes()
+    p = tmp_path / "cut.bag"
+    p.write_bytes(data[: int(len(data) * fraction)])
+    with open_recording(src) as rec:
+        whole = [(m.topic, m.log_ns) for m in rec.messages()]
+    with open_recording(p) as rec:
+        got = [(m.topic, m.log_ns) for m in rec.messages()]
+        assert rec.notes
+        assert str(p) in rec.notes[0]
+    assert 0 < len(got) < len(whole)
+    assert set(got) <= set(whole)
 
 
 def test_corrupt_chunk_reads_as_recording_error(tmp_path: Path) -> None:

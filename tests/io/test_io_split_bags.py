@@ -43,29 +43,50 @@ def test_the_bags_of_a_folder_go_in_name_order_with_numbers_as_numbers(tmp_path:
         assert rec.topics["/scan"].count == 1265
 
 
-def test_a_truncated_bag_in_a_folder_is_named(tmp_path: Path) -> None:
+def test_a_truncated_bag_in_a_folder_is_read_as_far_as_it_goes_and_named(tmp_path: Path) -> None:
     parts = split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec")
+    with open_recording(tmp_path / "rec") as rec:
+        whole = [(m.topic, m.log_ns) for m in rec.messages()]
     data = parts[1].read_bytes()
     parts[1].write_bytes(data[: len(data) // 2])
+    with open_recording(tmp_path / "rec") as rec:
+        got = [(m.topic, m.log_ns) for m in rec.messages()]
+        assert len(rec.notes) == 1
+        assert rec.notes[0].startswith(f"{parts[1]}: a ROS1 bag without its index")
+    assert set(got) < set(whole)
+    assert got == sorted(got, key=lambda m: m[1])
+
+
+def test_a_corrupt_bag_in_a_folder_is_named(tmp_path: Path) -> None:
+    parts = split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec")
+    data = parts[1].read_bytes()
+    parts[1].write_bytes(data[:4200] + bytes(range(256)) * 20)  # its header, then no record
     with pytest.raises(RecordingError) as info:
         open_recording(tmp_path / "rec")
     msg = str(info.value)
-    assert msg.startswith(f"{parts[1]}: cannot open this bag of the recording")
+    assert msg.startswith(f"{parts[1]}: ")
     assert "\n" not in msg
 
 
-def test_an_unfinished_bag_or_a_folder_without_bags_is_one_clear_error(tmp_path: Path) -> None:
+def test_a_folder_without_bags_is_one_clear_error(tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
     (empty / "notes.txt").write_text("no bags here")
     with pytest.raises(RecordingError, match=r"must be a ROS2 bag .* or hold ROS1 \.bag files"):
         open_recording(empty)
+
+
+def test_a_bag_named_active_is_one_of_the_folder(tmp_path: Path) -> None:
+    """``.bag.active`` is the name of a bag ``rosbag record`` had not closed: one of the recording (its
+    reading without an index: ``tests/io/test_io_unindexed_bags.py``)."""
     rec = tmp_path / "rec"
     parts = split_bag(bag("demo_stationary_simple_environment.bag"), rec, parts=2)
-    parts[1].rename(rec / "rec_1.bag.active")  # rosbag record was stopped before it closed this one
-    for path in (rec, rec / "rec_1.bag.active"):
-        with pytest.raises(RecordingError, match=r"rec_1\.bag\.active: an unfinished ROS1 bag .*reindex"):
-            open_recording(path)
+    with open_recording(rec) as whole:
+        expected = [(m.topic, m.log_ns, m.rawdata) for m in whole.messages()]
+    parts[1].rename(rec / "rec_1.bag.active")
+    with open_recording(rec) as r:
+        assert r.files == (rec / "rec_0.bag", rec / "rec_1.bag.active")
+        assert [(m.topic, m.log_ns, m.rawdata) for m in r.messages()] == expected
 
 
 def test_a_split_real_recording_labels_as_the_whole(tmp_path: Path) -> None:

@@ -1,0 +1,218 @@
+"""ROS1 bags without their index: an unfinished ``rosbag record`` (``.bag.active``) or a bag cut short.
+
+Real scans: leg_tracker's ``positive_3.bag`` (345 scans of 768 beams), rewritten by rosbags' writer into
+small chunks (uncompressed, bz2 and lz4), then cut, or left unfinished as the recorder leaves a bag.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import pytest
+
+from studio.io import RecordingError, open_recording
+from studio.io.reader import _RosbagsBackend
+from studio.io.ros1_unindexed import UnindexedRos1Backend, is_unindexed_ros1
+from tests.io.io_testdata import bag
+
+_HEADER_AT = len(b"#ROSBAG V2.0\n")
+Message = tuple[str, str, int, bytes]
+
+
+def rewrite(src: Path, dst: Path, compression: str = "none", chunk_bytes: int = 32 * 1024) -> Path:
+    """``src``'s messages in a bag of ``chunk_bytes`` chunks, compressed as told (raw bytes unchanged)."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    writer = Writer(dst)
+    if compression != "none":
+        writer.set_compression(Writer.CompressionFormat[compression.upper()])
+    writer.chunk_threshold = chunk_bytes
+    with Reader(src) as reader:
+        writer.open()
+        conns = {
+            c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+            for c in reader.connections
+        }
+        for c, t, raw in reader.messages():
+            writer.write(conns[c.id], t, raw)
+        writer.close()
+    return dst
+
+
+def stream(backend: _RosbagsBackend | UnindexedRos1Backend) -> list[Message]:
+    out = [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in backend.messages(None, None, None)]
+    backend.close()
+    return out
+
+
+def header_field(data: bytes | bytearray, name: str) -> int:
+    """Where the value of the bag header's field ``name`` starts."""
+    return bytes(data).index(name.encode() + b"=", _HEADER_AT) + len(name) + 1
+
+
+def index_pos(path: Path) -> int:
+    data = path.read_bytes()
+    return int(struct.unpack_from("<Q", data, header_field(data, "index_pos"))[0])
+
+
+def fields(values: dict[str, bytes]) -> bytes:
+    return b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in values.items())
+
+
+def record(header: dict[str, bytes], data: bytes) -> bytes:
+    h = fields(header)
+    return struct.pack("<I", len(h)) + h + struct.pack("<I", len(data)) + data
+
+
+def unfinished(whole: Path, dst: Path, open_chunk: list[Message] = ()) -> Path:  # type: ignore[assignment]
+    """``whole`` as a stopped ``rosbag record`` leaves it: ``index_pos`` 0 and nothing after the last chunk,
+    then (with ``open_chunk``) an unterminated uncompressed chunk (its lengths 0) holding those messages."""
+    data = bytearray(whole.read_bytes()[: index_pos(whole)])
+    at = header_field(data, "index_pos")
+    data[at : at + 8] = bytes(8)
+    if open_chunk:
+        from rosbags.rosbag1 import Reader
+
+        with Reader(whole) as reader:
+            c = reader.connections[0]
+            conn = struct.pack("<I", c.id)
+            info = {"topic": c.topic.encode(), "type": b"sensor_msgs/LaserScan", "md5sum": c.digest.encode()}
+            body = record({"op": b"\x07", "conn": conn, "topic": c.topic.encode()}, fields(info))
+        for _, _, t, raw in open_chunk:
+            stamp = struct.pack("<II", t // 1_000_000_000, t % 1_000_000_000)
+            body += record({"op": b"\x02", "conn": conn, "time": stamp}, raw)
+        head = fields({"op": b"\x05", "compression": b"none", "size": struct.pack("<I", 0)})
+        data += struct.pack("<I", len(head)) + head + struct.pack("<I", 0) + body
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+@pytest.fixture(scope="module")
+def chunked(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("chunked")
+    src = bag("positive/positive_3.bag")
+    return {c: rewrite(src, root / f"{c}.bag", c) for c in ("none", "bz2", "lz4")}
+
+
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_the_chunks_of_a_whole_bag_give_every_message_as_rosbags_does(chunked, compression):
+    path = chunked[compression]
+    expected = stream(_RosbagsBackend([path], "ros1"))
+    assert len(expected) == 345
+    backend = UnindexedRos1Backend([path])
+    assert backend.notes == []  # it has its index
+    assert {t: (i.msgtype, i.count) for t, i in backend.topics.items()} == {
+        "right_scan": ("sensor_msgs/msg/LaserScan", 345)
+    }
+    assert (backend.start_ns, backend.end_ns) == (expected[0][2], expected[-1][2])
+    assert stream(backend) == expected
+    # and on real bags as recorded (one chunk each): every leg_tracker bag
+    for name in (
+        "negative_2.bag",
+        "demo_stationary_simple_environment.bag",
+        "legs_labelled/positive_1_extracted.bag",
+    ):
+        assert stream(UnindexedRos1Backend([bag(name)])) == stream(_RosbagsBackend([bag(name)], "ros1"))
+
+
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_a_bag_cut_short_gives_every_whole_message_before_the_cut(chunked, compression, tmp_path):
+    whole = chunked[compression]
+    expected = stream(_RosbagsBackend([whole], "ros1"))
+    data = whole.read_bytes()
+    got = []
+    for frac in (0.1, 0.5, 0.9):
+        cut = tmp_path / f"cut_{frac}.bag"
+        cut.write_bytes(data[: int(len(data) * frac)])
+        assert is_unindexed_ros1(cut)
+        with open_recording(cut) as rec:
+            msgs = [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in rec.messages()]
+            assert len(rec.notes) == 1
+            assert "without its index" in rec.notes[0]
+            assert str(cut) in rec.notes[0]
+            assert rec.decode(next(rec.messages())).ranges.shape == (768,)
+        assert 0 < len(msgs) < len(expected)
+        assert msgs == expected[: len(msgs)]  # the first ones, in order: nothing made up, nothing skipped
+        got.append(len(msgs))
+    assert got == sorted(got)
+    # cut inside the index: rosbags cannot read the index, the chunks give every message
+    cut = tmp_path / "cut_index.bag"
+    cut.write_bytes(data[: index_pos(whole) + 40])
+    with open_recording(cut) as rec:
+        assert [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in rec.messages()] == expected
+
+
+def test_an_unfinished_recording_reads_as_far_as_it_got(chunked, tmp_path):
+    whole = chunked["none"]
+    expected = stream(_RosbagsBackend([whole], "ros1"))
+    # the index never written; the last chunk still open (as rosbag record leaves it) with 5 more scans
+    more = [
+        (topic, msgtype, expected[-1][2] + k * 100_000_000, raw)
+        for k, (topic, msgtype, _, raw) in enumerate(expected[:5], 1)
+    ]
+    active = unfinished(whole, tmp_path / "run.bag.active", open_chunk=more)
+    with open_recording(active) as rec:
+        assert [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in rec.messages()] == expected + more
+        assert rec.topics["right_scan"].count == 350
+    # a folder of split bags whose last one is unfinished is one recording
+    folder = tmp_path / "split"
+    folder.mkdir()
+    early = [m for m in expected if m[2] < expected[200][2]]
+    late_src = rewrite(bag("positive/positive_3.bag"), tmp_path / "late_whole.bag")
+    _trim(late_src, folder / "rec_0.bag", stop_ns=expected[200][2])
+    unfinished(_trim(late_src, tmp_path / "late.bag", start_ns=expected[200][2]), folder / "rec_1.bag.active")
+    with open_recording(folder) as rec:
+        assert rec.files == (folder / "rec_0.bag", folder / "rec_1.bag.active")
+        msgs = [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in rec.messages()]
+        assert msgs[: len(early)] == early
+        assert len(msgs) == len(expected)
+        assert len(rec.notes) == 1
+        assert "rec_1.bag.active" in rec.notes[0]
+
+
+def _trim(src: Path, dst: Path, start_ns: int | None = None, stop_ns: int | None = None) -> Path:
+    from rosbags.rosbag1 import Reader, Writer
+
+    writer = Writer(dst)
+    with Reader(src) as reader:
+        writer.open()
+        conns = {
+            c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
+            for c in reader.connections
+        }
+        for c, t, raw in reader.messages(start=start_ns, stop=stop_ns):
+            writer.write(conns[c.id], t, raw)
+        writer.close()
+    return dst
+
+
+def test_a_bag_with_no_whole_message_is_one_clear_error(chunked, tmp_path):
+    data = chunked["none"].read_bytes()
+    for name, content in (
+        ("header_only.bag", data[:5000]),  # the bag header's 4 KB and a few bytes of the first chunk
+        ("junk.bag.active", data[:4200] + b"\x13\x37" * 500),
+    ):
+        path = tmp_path / name
+        path.write_bytes(content)
+        with pytest.raises(RecordingError) as info:
+            open_recording(path)
+        assert "\n" not in str(info.value)
+        assert str(path) in str(info.value)
+
+
+def test_studio_label_labels_a_cut_real_bag_and_says_so(tmp_path, capsys):
+    from studio.cli import main
+
+    data = bag("positive/positive_3.bag").read_bytes()
+    cut = tmp_path / "positive_3_cut.bag"
+    cut.write_bytes(data[: len(data) // 2])
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("base_frame: right_laser\nlasers:\n  - topic: right_scan\n")
+    assert main(["label", str(cut), "--rig", str(rig), "--out", str(tmp_path / "run"), "--no-rrd"]) == 0
+    out = capsys.readouterr().out
+    assert "note: " in out
+    assert "without its index" in out
+    frames = int(out.split("labeled ")[1].split(" frames")[0])
+    assert 150 < frames < 345
+    assert (tmp_path / "run" / "labels.yaml").is_file()
