@@ -11,10 +11,17 @@ What is decoded, per channel ``message_encoding``:
   profile);
 * anything else (protobuf, flatbuffer, schemaless CDR) is listed by ``inspect`` but cannot be decoded:
   :meth:`McapBackend.decode` raises and the caller reports it.
+
+A file cut short (its recorder stopped before it wrote the summary and footer, or a broken copy) is read
+record by record with ``mcap``'s stream reader, up to the cut, and the messages come in log-time order (put
+back in it where the writer's order strays by up to ``_REORDER`` messages); :attr:`McapBackend.notes` says
+so. ROS 2 MCAP files that rosbags cannot open for that reason are read this way as well
+(``studio.io.reader``).
 """
 
 from __future__ import annotations
 
+import heapq
 import json
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,6 +32,8 @@ from studio.io.base import RawMessage, TopicInfo
 from studio.io.errors import RecordingError
 
 __all__ = ["McapBackend", "json_to_namespace"]
+
+_REORDER = 4096  # messages of a cut file put back in log-time order up to this many places (see below)
 
 
 def json_to_namespace(value: Any) -> Any:
@@ -44,9 +53,16 @@ class McapBackend:
 
         self.path = path
         self._file: BinaryIO | None = path.open("rb")
+        self.notes: list[str] = []
+        self._cut = False  # the file ends before its summary and footer: read record by record
         try:
             self.reader = make_reader(self._file)
-            summary = self.reader.get_summary()
+            try:
+                summary = self.reader.get_summary()
+            except Exception as exc:
+                self._cut, summary = True, None
+                self._scan_cut(exc)
+                return
             self._channels: dict[str, tuple[str, str, str, bytes]] = {}  # topic → (msg enc, name, enc, data)
             counts: dict[str, int] = {}
             start = end = 0
@@ -78,6 +94,55 @@ class McapBackend:
             self.close()
             raise
 
+    def _scan_cut(self, error: Exception) -> None:
+        """Channels, counts and span of a file cut short (its recorder stopped before it wrote the
+        summary and footer, or a broken copy): one pass over its whole records."""
+        counts: dict[str, int] = {}
+        stamps = []
+        for _schema, ch, msg in self._records(None):
+            counts[ch.topic] = counts.get(ch.topic, 0) + 1
+            stamps.append(int(msg.log_time))
+        if not stamps:
+            reason = " ".join(str(error).split()) or type(error).__name__
+            raise RecordingError(f"{self.path}: no whole message in the file ({reason[:200]})")
+        self._channels = {}
+        for ch, schema in self._cut_channels.values():
+            self._add_channel(ch, schema)
+        self.topics = {
+            t: TopicInfo(t, self._channels[t][1], counts.get(t, 0)) for t in sorted(self._channels)
+        }
+        self.start_ns, self.end_ns = min(stamps), max(stamps)
+        self._typestore = None
+        self._registered = set()
+        self.notes.append(
+            f"{self.path}: an MCAP file without its summary (its recording was interrupted, or the file was "
+            f"cut short): {len(stamps)} whole messages read"
+        )
+
+    def _records(self, topics: list[str] | None) -> Iterator[tuple[Any, Any, Any]]:
+        """(schema, channel, message) of the whole records of a cut file, in file order, up to the cut."""
+        from mcap.records import Channel, Message, Schema
+        from mcap.stream_reader import StreamReader
+
+        assert self._file is not None
+        self._file.seek(0)
+        schemas: dict[int, Any] = {}
+        channels: dict[int, Any] = {}
+        self._cut_channels: dict[str, tuple[Any, Any]] = {}
+        try:
+            for r in StreamReader(self._file).records:
+                if isinstance(r, Schema):
+                    schemas[r.id] = r
+                elif isinstance(r, Channel):
+                    channels[r.id] = r
+                    self._cut_channels.setdefault(r.topic, (r, schemas.get(r.schema_id)))
+                elif isinstance(r, Message) and r.channel_id in channels:
+                    ch = channels[r.channel_id]
+                    if topics is None or ch.topic in topics:
+                        yield schemas.get(ch.schema_id), ch, r
+        except Exception:  # the cut: a record, chunk or its compression ends there
+            return
+
     def _add_channel(self, channel: Any, schema: Any) -> None:
         if schema is None:
             self._channels[channel.topic] = (channel.message_encoding, "", "", b"")
@@ -92,11 +157,31 @@ class McapBackend:
     def messages(
         self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
     ) -> Iterator[RawMessage]:
+        if self._cut:
+            yield from self._cut_messages(topics, start_ns, stop_ns)
+            return
         for _schema, ch, msg in self.reader.iter_messages(
             topics=topics, starting_at=start_ns, ending_before=stop_ns
         ):
             name = self._channels.get(ch.topic, ("", "", "", b""))[1]
             yield RawMessage(ch.topic, name, int(msg.log_time), bytes(msg.data))
+
+    def _cut_messages(
+        self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[RawMessage]:
+        """The messages of a cut file in log-time order: a recorder writes them in about that order, and
+        those up to ``_REORDER`` places out of it are put back in it."""
+        heap: list[tuple[int, int, RawMessage]] = []
+        for n, (_schema, ch, msg) in enumerate(self._records(topics)):
+            t = int(msg.log_time)
+            if (start_ns is not None and t < start_ns) or (stop_ns is not None and t >= stop_ns):
+                continue
+            name = self._channels.get(ch.topic, ("", "", "", b""))[1]
+            heapq.heappush(heap, (t, n, RawMessage(ch.topic, name, t, bytes(msg.data))))
+            if len(heap) > _REORDER:
+                yield heapq.heappop(heap)[2]
+        while heap:
+            yield heapq.heappop(heap)[2]
 
     def _ros_type(self, name: str, schema_enc: str, schema_data: bytes) -> str:
         from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore

@@ -139,6 +139,25 @@ def _ros1_backend(files: list[Path]) -> _Backend:
     return backend
 
 
+def _ros2_mcap_backend(path: Path) -> _Backend:
+    """rosbags' reader for a ROS 2 MCAP file; one cut short (no summary and footer: the recorder stopped
+    before it wrote them, or a broken copy) is read record by record with the ``mcap`` library instead
+    (:class:`studio.io.mcap_backend.McapBackend`, which decodes its CDR messages with rosbags)."""
+    from studio.io.mcap_backend import McapBackend
+
+    try:
+        return _RosbagsBackend([path], "ros2")
+    except Exception as exc:
+        error = exc
+    try:
+        backend = McapBackend(path)
+    except Exception:
+        raise error from None
+    if not backend.notes:  # the mcap library reads what rosbags could not, summary and all
+        backend.notes.append(f"{path}: read with the mcap library; rosbags could not: {_reason(error)}")
+    return backend
+
+
 def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
     """Raises :class:`RecordingError` naming the first of ``paths`` (ROS1 bags) that cannot be opened alone;
     returns when each can (the error is then in how they go together)."""
@@ -342,6 +361,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             from studio.io.mcap_backend import McapBackend
 
             backend = McapBackend(p)
+        elif kind == "ros2" and p.suffix == ".mcap":
+            backend = _ros2_mcap_backend(p)
         elif kind == "ros1":
             backend = _ros1_backend(files)
         else:

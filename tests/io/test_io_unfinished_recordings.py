@@ -1,7 +1,9 @@
-"""ROS1 bags without their index: an unfinished ``rosbag record`` (``.bag.active``) or a bag cut short.
+"""Recordings whose recorder stopped before it finished the file, or cut short by a full disk or a broken
+copy: ROS1 bags without their index (``.bag.active``), MCAP files without their summary.
 
 Real scans: leg_tracker's ``positive_3.bag`` (345 scans of 768 beams), rewritten by rosbags' writer into
-small chunks (uncompressed, bz2 and lz4), then cut, or left unfinished as the recorder leaves a bag.
+small chunks (uncompressed, bz2 and lz4), then cut, or left unfinished as ``rosbag record`` leaves a bag;
+the synthetic ROS 2 recording of ``io_testdata`` (lasers, camera, odometry, TF) for MCAP.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import pytest
 from studio.io import RecordingError, open_recording
 from studio.io.reader import _RosbagsBackend
 from studio.io.ros1_unindexed import UnindexedRos1Backend, is_unindexed_ros1
-from tests.io.io_testdata import bag
+from tests.io.io_testdata import bag, write_synthetic
 
 _HEADER_AT = len(b"#ROSBAG V2.0\n")
 Message = tuple[str, str, int, bytes]
@@ -216,3 +218,72 @@ def test_studio_label_labels_a_cut_real_bag_and_says_so(tmp_path, capsys):
     frames = int(out.split("labeled ")[1].split(" frames")[0])
     assert 150 < frames < 345
     assert (tmp_path / "run" / "labels.yaml").is_file()
+
+
+def rechunk(src: Path, dst: Path, chunk_bytes: int = 16 * 1024) -> Path:
+    """``src`` (an MCAP file) written again by the ``mcap`` library in zstd chunks of ``chunk_bytes``, as a
+    ROS 2 recorder writes (records unchanged)."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    with src.open("rb") as f, dst.open("wb") as out:
+        reader = make_reader(f)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        assert summary is not None
+        writer = Writer(out, chunk_size=chunk_bytes)
+        writer.start(profile=header.profile, library=header.library)
+        schemas = {i: writer.register_schema(s.name, s.encoding, s.data) for i, s in summary.schemas.items()}
+        channels = {
+            i: writer.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0), c.metadata)
+            for i, c in summary.channels.items()
+        }
+        for _schema, ch, msg in reader.iter_messages(log_time_order=False):
+            writer.add_message(channels[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+        writer.finish()
+    return dst
+
+
+def test_an_mcap_file_cut_short_gives_its_whole_messages_in_order(tmp_path):
+    from studio.io import iter_frames, load_rig
+
+    whole = rechunk(write_synthetic(tmp_path / "one_chunk.mcap"), tmp_path / "rec.mcap")
+    with open_recording(whole) as rec:
+        assert rec.notes == []
+        expected = sorted((m.log_ns, m.topic, m.rawdata) for m in rec.messages())
+    data = whole.read_bytes()
+    got_counts = []
+    for frac in (0.3, 0.7, 1.0):
+        cut = tmp_path / f"cut_{frac}.mcap"
+        cut.write_bytes(data[: int(len(data) * frac) - 30])  # at 1.0 only the footer is lost
+        with open_recording(cut) as rec:
+            assert len(rec.notes) == 1
+            assert rec.notes[0].startswith(f"{cut}: an MCAP file without its summary")
+            got = [(m.log_ns, m.topic, m.rawdata) for m in rec.messages()]
+            assert [g[0] for g in got] == sorted(g[0] for g in got)  # in log-time order
+            assert sorted(got) == expected[: len(got)]  # the first ones: nothing made up, nothing skipped
+            assert sum(t.count for t in rec.topics.values()) == len(got)
+            scan = rec.decode(next(rec.messages(["/scan_front"])))
+            assert scan.ranges.shape == (45,)
+        got_counts.append(len(got))
+    assert 0 < got_counts[0] < got_counts[1] < got_counts[2] == len(expected)
+    # and it labels: frames of the lasers and the camera as far as the file goes
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        "base_frame: base_link\nodometry: {topic: /odom}\n"
+        "camera: {topic: /camera/image/compressed}\nlasers: [{topic: /scan_front}, {topic: /scan_back}]\n"
+    )
+    with open_recording(tmp_path / "cut_0.7.mcap") as rec:
+        frames = list(iter_frames(rec, load_rig(rig)))
+    assert 0 < len(frames) < 40
+    assert all(len(f.scans) == 2 for f in frames)
+
+
+def test_an_mcap_file_with_no_whole_message_is_one_clear_error(tmp_path):
+    data = write_synthetic(tmp_path / "rec.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:60])
+    with pytest.raises(RecordingError) as info:
+        open_recording(cut)
+    assert str(cut) in str(info.value)
+    assert "\n" not in str(info.value)
