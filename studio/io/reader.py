@@ -173,6 +173,27 @@ def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
             ) from exc
 
 
+def _unfinished_ros2(folder: Path) -> Path | None:
+    """The one ``.mcap`` file of a ROS 2 bag folder that has no ``metadata.yaml`` (``ros2 bag record``
+    writes it when it stops: one stopped by a crash or a power cut leaves none), or None when the folder
+    holds ROS1 bags or no ROS 2 storage file.
+
+    Raises:
+        RecordingError: several ``.mcap`` files (a split recording needs its metadata), or ``.db3`` files.
+    """
+    if any(f.name.endswith((".bag", ".bag.active")) for f in folder.iterdir()):
+        return None
+    mcaps = sorted(folder.glob("*.mcap"))
+    if len(mcaps) == 1:
+        return mcaps[0]
+    if mcaps or any(folder.glob("*.db3")):
+        raise RecordingError(
+            f"{folder}: a ROS 2 bag without metadata.yaml (its recording was interrupted) whose storage "
+            "studio cannot read alone: run `ros2 bag reindex` on it, or pass one of its .mcap files"
+        )
+    return None
+
+
 def _ros1_bags(folder: Path) -> list[Path]:
     """The ROS1 bags of a folder recording, in name order (``run_2.bag`` before ``run_10.bag``), a bag
     ``rosbag record`` did not finish (``.bag.active``) included.
@@ -339,7 +360,17 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             f"it): pass the folder {p.parent}"
         )
     try:
-        if p.is_dir():
+        notes: list[str] = []
+        unfinished_ros2 = p.is_dir() and not (p / "metadata.yaml").exists() and _unfinished_ros2(p)
+        if unfinished_ros2:
+            notes = [
+                f"{p}: a ROS 2 bag without metadata.yaml (its recording was interrupted): read its "
+                f"{unfinished_ros2.name}"
+            ]
+            p = unfinished_ros2
+            files = [p]
+            kind = "ros2" if _mcap_profile(p) == "ros2" else "mcap"
+        elif p.is_dir():
             if (p / "metadata.yaml").exists():
                 kind = "ros2"
             else:
@@ -373,4 +404,6 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
         raise RecordingError(
             f"{p}: cannot open the recording (truncated or corrupt?): {_reason(exc)}"
         ) from exc
-    return Recording(p, kind, backend, tuple(files))
+    rec = Recording(p, kind, backend, tuple(files))
+    rec.notes[:0] = notes
+    return rec

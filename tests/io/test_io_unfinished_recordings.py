@@ -287,3 +287,26 @@ def test_an_mcap_file_with_no_whole_message_is_one_clear_error(tmp_path):
         open_recording(cut)
     assert str(cut) in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_a_ros2_bag_folder_without_metadata_reads_its_mcap_file(tmp_path):
+    """``ros2 bag record`` writes metadata.yaml when it stops; a crash leaves the folder without it."""
+    whole = rechunk(write_synthetic(tmp_path / "one_chunk.mcap"), tmp_path / "rec.mcap")
+    with open_recording(whole) as rec:
+        expected = [(m.log_ns, m.topic) for m in rec.messages()]
+    folder = tmp_path / "rosbag2_2026_12_05"
+    folder.mkdir()
+    data = whole.read_bytes()
+    (folder / "rosbag2_2026_12_05_0.mcap").write_bytes(data[: len(data) // 2])
+    with open_recording(folder) as rec:
+        assert rec.notes[0] == (
+            f"{folder}: a ROS 2 bag without metadata.yaml (its recording was interrupted): read its "
+            "rosbag2_2026_12_05_0.mcap"
+        )
+        assert "without its summary" in rec.notes[1]
+        got = [(m.log_ns, m.topic) for m in rec.messages()]
+    assert 0 < len(got) < len(expected)
+    # a split one (several files) or one in sqlite3 files: what to do, in one line
+    (folder / "rosbag2_2026_12_05_1.mcap").write_bytes(data)
+    with pytest.raises(RecordingError, match=r"without metadata\.yaml .*ros2 bag reindex"):
+        open_recording(folder)
