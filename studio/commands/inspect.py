@@ -50,7 +50,15 @@ def _metres(v: float) -> str:
     return "∞" if v >= 1e30 else f"{v:g}"
 
 
-_SENSOR_KINDS = ("LaserScan", "PointCloud2", "CompressedImage", "Image", "RawImage", "Odometry")
+_SENSOR_KINDS = (
+    "LaserScan",
+    "MultiEchoLaserScan",
+    "PointCloud2",
+    "CompressedImage",
+    "Image",
+    "RawImage",
+    "Odometry",
+)
 
 
 def _kind(msgtype: str) -> str:
@@ -62,7 +70,7 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
     kind = _kind(first.msgtype)
     try:
         msg = rec.decode(first)
-        if kind == "LaserScan":
+        if kind in ("LaserScan", "MultiEchoLaserScan"):
             s = decode_scan(msg, first.log_ns)
             fov = abs(s.angle_increment) * max(len(s) - 1, 0)
             text = (
@@ -73,6 +81,7 @@ def _sensor_detail(rec: Recording, first: RawMessage, last: RawMessage | None, c
                     if s.time_increment
                     else "no time_increment (beams taken as measured at the header stamp)"
                 )
+                + ("; multi-echo: each beam's first echo is used" if kind == "MultiEchoLaserScan" else "")
             )
         elif kind == "PointCloud2":
             names = ", ".join(str(f.name) for f in msg.fields)
@@ -269,7 +278,7 @@ def draft_rig(rec: Recording, tf: TfBuffer | None = None) -> list[str]:
     for name, info in rec.topics.items():
         by_kind.setdefault(_kind(info.msgtype), []).append(name)
     scans: list[tuple[str, str]] = []  # (topic, frame)
-    for topic in by_kind.get("LaserScan", []):
+    for topic in by_kind.get("LaserScan", []) + by_kind.get("MultiEchoLaserScan", []):
         scan = _first_decoded(rec, topic, decode_scan)
         if scan is not None:
             scans.append((topic, scan.frame_id))

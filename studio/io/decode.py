@@ -89,8 +89,8 @@ def yaw_from_quat(x: float, y: float, z: float, w: float) -> float:
 
 
 def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | None = None) -> LaserScan:
-    """sensor_msgs/LaserScan (or foxglove.LaserScan) → :class:`LaserScan`; a sensor_msgs/PointCloud2 is
-    sliced into one as ``cloud`` says.
+    """sensor_msgs/LaserScan (or foxglove.LaserScan; or sensor_msgs/MultiEchoLaserScan, of which each beam's
+    first echo) → :class:`LaserScan`; a sensor_msgs/PointCloud2 is sliced into one as ``cloud`` says.
 
     Args:
         msg: the deserialized message.
@@ -111,9 +111,9 @@ def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | No
     try:
         stamp = stamp_ns_of(msg, stamp_ns)
         frame = _frame_of(msg)
-        ranges = np.asarray(msg.ranges, dtype=np.float32).reshape(-1)
+        ranges = _first_echoes(msg.ranges)
         inten_raw = getattr(msg, "intensities", None)
-        inten = None if inten_raw is None else np.asarray(inten_raw, dtype=np.float32).reshape(-1)
+        inten = None if inten_raw is None else _first_echoes(inten_raw)
         if inten is not None and inten.shape != ranges.shape:
             inten = None
         if hasattr(msg, "angle_min"):
@@ -135,6 +135,15 @@ def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | No
         return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten, ti)
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable laser scan: {exc}") from None
+
+
+def _first_echoes(values: Any) -> np.ndarray:
+    """A scan's ranges (or intensities) as float32: as they are, or of a sensor_msgs/MultiEchoLaserScan (a
+    ``LaserEcho`` per beam) each beam's first echo, the nearest return (NaN where a beam has none): a
+    person in front of a wall is the first thing a beam hits."""
+    if len(values) and hasattr(values[0], "echoes"):
+        return np.array([e.echoes[0] if len(e.echoes) else np.nan for e in values], dtype=np.float32)
+    return np.asarray(values, dtype=np.float32).reshape(-1)
 
 
 # sensor_msgs/PointField datatypes

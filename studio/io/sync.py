@@ -53,7 +53,7 @@ DROP_NOT_AFTER = "a duplicate or out-of-order stamp"
 _UPRIGHT_MIN_COS = 0.5  # the base frame's z axis within 60° of the odometry frame's
 
 _IMAGE_TYPES = ("CompressedImage", "Image", "RawImage")
-_SCAN_TYPES = ("LaserScan", "PointCloud2")
+_SCAN_TYPES = ("LaserScan", "MultiEchoLaserScan", "PointCloud2")
 _ODOM_TYPES = ("Odometry", "PoseInFrame", "PoseStamped")
 
 
