@@ -147,6 +147,11 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
             "someone who stood still for the whole recording is not labelled, nor a walk through a crowd "
             "so dense that its path was occupied 30 % of the time."
         )
+    lines += [
+        f"- The recording did not end as a recorder ends it, and was read as far as it goes: {n}."
+        for n in result.notes
+        if "its recording was interrupted" in n  # studio.io's notes on unfinished or cut recordings
+    ]
     if any("oracle" in n for n in result.notes) or (options.image_detector or "").startswith("oracle"):
         lines.append("- Boxes come from the ORACLE detector (ground truth with noise): simulated data only.")
     return "\n".join(lines) + "\n"

@@ -13,6 +13,7 @@ import pytest
 from studio.commands.label import run_label
 from studio.labels import read_labels
 from studio.pipeline import LabelOptions
+from tests.io.io_testdata import bag
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +90,9 @@ def test_the_dataset_card_says_how_each_laser_s_beams_were_timed() -> None:
     assert b.endswith("no beam timing in its scans (all beams taken at the scan's stamp)")
 
 
-def _card(options: LabelOptions, lasers: list[str], beam_deg: dict[str, float]) -> str:
+def _card(
+    options: LabelOptions, lasers: list[str], beam_deg: dict[str, float], notes: tuple[str, ...] = ()
+) -> str:
     """The dataset card of a run without labels, on a rig without a camera."""
     from types import SimpleNamespace
 
@@ -101,7 +104,9 @@ def _card(options: LabelOptions, lasers: list[str], beam_deg: dict[str, float]) 
         odometry=None,
         lasers=[SimpleNamespace(topic=t, pose=None) for t in lasers],
     )
-    result = SimpleNamespace(labels=[], notes=[], image_size=None, counts={"laser_beam_deg": beam_deg})
+    result = SimpleNamespace(
+        labels=[], notes=list(notes), image_size=None, counts={"laser_beam_deg": beam_deg}
+    )
     return dataset_card(result, options=options, recording=Path("r.bag"), rig=rig, n_images=0)
 
 
@@ -122,3 +127,19 @@ def test_the_dataset_card_of_a_laser_only_run_says_who_stood_still_is_missing() 
     limit = "a track is kept only if it walked 1 m somewhere"
     assert limit in _card(LabelOptions(), [], {})
     assert limit not in _card(replace(LabelOptions(), min_walk_m=0.0), [], {})
+
+
+def test_the_dataset_card_says_when_the_recording_was_cut_short(tmp_path: Path) -> None:
+    from studio.io import open_recording
+
+    data = bag("positive/positive_3.bag").read_bytes()
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(data[: len(data) // 2])
+    with open_recording(cut) as rec:
+        notes = tuple(rec.notes)
+    card = _card(LabelOptions(), ["right_scan"], {}, notes)
+    assert (
+        f"- The recording did not end as a recorder ends it, and was read as far as it goes: {cut}: a ROS1"
+        in card
+    )
+    assert "read as far as it goes" not in _card(LabelOptions(), [], {}, ("some other note",))
