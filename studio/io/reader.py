@@ -174,24 +174,22 @@ def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
 
 
 def _unfinished_ros2(folder: Path) -> Path | None:
-    """The one ``.mcap`` file of a ROS 2 bag folder that has no ``metadata.yaml`` (``ros2 bag record``
-    writes it when it stops: one stopped by a crash or a power cut leaves none), or None when the folder
-    holds ROS1 bags or no ROS 2 storage file.
+    """The one storage file (``.mcap`` or ``.db3``) of a ROS 2 bag folder that has no ``metadata.yaml``
+    (``ros2 bag record`` writes it when it stops: one stopped by a crash or a power cut leaves none), or None
+    when the folder holds ROS1 bags or no ROS 2 storage file.
 
     Raises:
-        RecordingError: several ``.mcap`` files (a split recording needs its metadata), or ``.db3`` files.
+        RecordingError: several storage files (a split recording: their order is in the metadata).
     """
     if any(f.name.endswith((".bag", ".bag.active")) for f in folder.iterdir()):
         return None
-    mcaps = sorted(folder.glob("*.mcap"))
-    if len(mcaps) == 1:
-        return mcaps[0]
-    if mcaps or any(folder.glob("*.db3")):
+    files = sorted(f for f in folder.iterdir() if f.suffix in (".mcap", ".db3") and f.is_file())
+    if len(files) > 1:
         raise RecordingError(
-            f"{folder}: a ROS 2 bag without metadata.yaml (its recording was interrupted) whose storage "
-            "studio cannot read alone: run `ros2 bag reindex` on it, or pass one of its .mcap files"
+            f"{folder}: a ROS 2 bag without metadata.yaml (its recording was interrupted) in "
+            f"{len(files)} files: run `ros2 bag reindex` on it, or pass one of its files"
         )
-    return None
+    return files[0] if files else None
 
 
 def _ros1_bags(folder: Path) -> list[Path]:
@@ -369,7 +367,7 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             ]
             p = unfinished_ros2
             files = [p]
-            kind = "ros2" if _mcap_profile(p) == "ros2" else "mcap"
+            kind = "ros2" if p.suffix == ".db3" or _mcap_profile(p) == "ros2" else "mcap"
         elif p.is_dir():
             if (p / "metadata.yaml").exists():
                 kind = "ros2"

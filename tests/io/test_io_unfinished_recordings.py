@@ -306,7 +306,35 @@ def test_a_ros2_bag_folder_without_metadata_reads_its_mcap_file(tmp_path):
         assert "without its summary" in rec.notes[1]
         got = [(m.log_ns, m.topic) for m in rec.messages()]
     assert 0 < len(got) < len(expected)
-    # a split one (several files) or one in sqlite3 files: what to do, in one line
+    # a split one (several files): what to do, in one line
     (folder / "rosbag2_2026_12_05_1.mcap").write_bytes(data)
-    with pytest.raises(RecordingError, match=r"without metadata\.yaml .*ros2 bag reindex"):
+    with pytest.raises(RecordingError, match=r"without metadata\.yaml .* in 2 files: run `ros2 bag reindex`"):
         open_recording(folder)
+
+
+def test_a_ros2_sqlite3_bag_folder_without_metadata_reads_its_db3_file(tmp_path):
+    """Humble's default storage: ``ros2 bag record`` stopped by a crash leaves its .db3 file alone."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    src = write_synthetic(tmp_path / "rec.mcap")
+    folder = tmp_path / "rosbag2_db3"
+    writer = Writer(folder, version=8, storage_plugin=StoragePlugin.SQLITE3)
+    with AnyReader([src], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+        writer.open()
+        conns = {
+            c.id: writer.add_connection(c.topic, c.msgtype, typestore=reader.typestore)
+            for c in reader.connections
+        }
+        expected = []
+        for c, t, raw in reader.messages():
+            writer.write(conns[c.id], t, raw)
+            expected.append((t, c.topic))
+        writer.close()
+    (folder / "metadata.yaml").unlink()
+    with open_recording(folder) as rec:
+        note = f"{folder}: a ROS 2 bag without metadata.yaml (its recording was interrupted): read its "
+        assert rec.notes == [note + "rosbag2_db3.db3"]
+        assert sorted((m.log_ns, m.topic) for m in rec.messages()) == sorted(expected)
+        assert rec.decode(next(rec.messages(["/scan_front"]))).ranges.shape == (45,)
