@@ -14,9 +14,9 @@ What is decoded, per channel ``message_encoding``:
 
 A file cut short (its recorder stopped before it wrote the summary and footer, or a broken copy) is read
 record by record with ``mcap``'s stream reader, up to the cut, and the messages come in log-time order (put
-back in it where the writer's order strays by up to ``_REORDER`` messages); :attr:`McapBackend.notes` says
-so. ROS 2 MCAP files that rosbags cannot open for that reason are read this way as well
-(``studio.io.reader``).
+back in it where the writer's order strays by up to ``_REORDER`` messages or 64 MB of them);
+:attr:`McapBackend.notes` says so. ROS 2 MCAP files that rosbags cannot open for that reason are read this
+way as well (``studio.io.reader``).
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from studio.io.errors import RecordingError
 
 __all__ = ["McapBackend", "json_to_namespace"]
 
-_REORDER = 4096  # messages of a cut file put back in log-time order up to this many places (see below)
+# messages of a cut file are put back in log-time order up to this many places, or this many bytes of them
+_REORDER, _REORDER_BYTES = 4096, 64 << 20
 
 
 def json_to_namespace(value: Any) -> Any:
@@ -170,16 +171,20 @@ class McapBackend:
         self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
     ) -> Iterator[RawMessage]:
         """The messages of a cut file in log-time order: a recorder writes them in about that order, and
-        those up to ``_REORDER`` places out of it are put back in it."""
+        those up to ``_REORDER`` places (or ``_REORDER_BYTES``) out of it are put back in it."""
         heap: list[tuple[int, int, RawMessage]] = []
+        held = 0  # bytes of the messages in the heap
         for n, (_schema, ch, msg) in enumerate(self._records(topics)):
             t = int(msg.log_time)
             if (start_ns is not None and t < start_ns) or (stop_ns is not None and t >= stop_ns):
                 continue
             name = self._channels.get(ch.topic, ("", "", "", b""))[1]
             heapq.heappush(heap, (t, n, RawMessage(ch.topic, name, t, bytes(msg.data))))
-            if len(heap) > _REORDER:
-                yield heapq.heappop(heap)[2]
+            held += len(msg.data)
+            while len(heap) > _REORDER or held > _REORDER_BYTES:
+                out = heapq.heappop(heap)[2]
+                held -= len(out.rawdata)
+                yield out
         while heap:
             yield heapq.heappop(heap)[2]
 

@@ -338,3 +338,29 @@ def test_a_ros2_sqlite3_bag_folder_without_metadata_reads_its_db3_file(tmp_path)
         assert rec.notes == [note + "rosbag2_db3.db3"]
         assert sorted((m.log_ns, m.topic) for m in rec.messages()) == sorted(expected)
         assert rec.decode(next(rec.messages(["/scan_front"]))).ranges.shape == (45,)
+
+
+def test_a_cut_mcap_written_slightly_out_of_order_is_read_in_log_time_order(tmp_path):
+    """A writer's order may stray from log time (several threads writing): the cut file is read sorted."""
+    import json
+
+    from mcap.writer import Writer
+
+    stamps = [1_000_000_000 + 10_000_000 * (k + (3 if k % 4 == 0 else 0)) for k in range(400)]
+    whole = tmp_path / "plain.mcap"
+    with whole.open("wb") as f:
+        w = Writer(f, chunk_size=2048)
+        w.start(profile="", library="test")
+        schema = w.register_schema("Thing", "jsonschema", b"{}")
+        ch = w.register_channel("/thing", "json", schema)
+        for k, t in enumerate(stamps):
+            w.add_message(ch, t, json.dumps({"k": k}).encode(), t)
+        w.finish()
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    with open_recording(cut) as rec:
+        got = [(m.log_ns, rec.decode(m).k) for m in rec.messages()]
+    assert 100 < len(got) < 400
+    assert [t for t, _ in got] == sorted(t for t, _ in got)
+    assert sorted(k for _, k in got) == list(range(len(got)))  # the first ones written, each once
