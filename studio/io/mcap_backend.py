@@ -56,6 +56,11 @@ class McapBackend:
         self._file: BinaryIO | None = path.open("rb")
         self.notes: list[str] = []
         self._cut = False  # the file ends before its summary and footer: read record by record
+        self._pieces: list[tuple[int, int, int]] | None = (
+            None  # a cut file's chunks: (offset, first, last ns)
+        )
+        self._schemas: dict[int, Any] = {}
+        self._chans: dict[int, Any] = {}
         try:
             self.reader = make_reader(self._file)
             try:
@@ -120,29 +125,62 @@ class McapBackend:
             f"cut short): {len(stamps)} whole messages read"
         )
 
-    def _records(self, topics: list[str] | None) -> Iterator[tuple[Any, Any, Any]]:
-        """(schema, channel, message) of the whole records of a cut file, in file order, up to the cut."""
-        from mcap.records import Channel, Message, Schema
-        from mcap.stream_reader import StreamReader
+    def _records(
+        self, topics: list[str] | None, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[Any, Any, Any]]:
+        """(schema, channel, message) of the whole records of a cut file, in file order, up to the cut.
 
-        assert self._file is not None
-        self._file.seek(0)
-        schemas: dict[int, Any] = {}
-        channels: dict[int, Any] = {}
-        self._cut_channels: dict[str, tuple[Any, Any]] = {}
-        try:
-            for r in StreamReader(self._file).records:
-                if isinstance(r, Schema):
-                    schemas[r.id] = r
-                elif isinstance(r, Channel):
-                    channels[r.id] = r
-                    self._cut_channels.setdefault(r.topic, (r, schemas.get(r.schema_id)))
-                elif isinstance(r, Message) and r.channel_id in channels:
-                    ch = channels[r.channel_id]
-                    if topics is None or ch.topic in topics:
-                        yield schemas.get(ch.schema_id), ch, r
-        except Exception:  # the cut: a record, chunk or its compression ends there
-            return
+        The first call reads the whole file and notes where each chunk (or message outside chunks) lies
+        and the log times it spans; later calls read only the pieces that overlap ``[start_ns, stop_ns)``
+        (the viewer asks for one frame's messages at a time)."""
+        from mcap.records import Channel, Chunk, Message, Schema
+        from mcap.stream_reader import StreamReader, breakup_chunk
+
+        f = self._file
+        assert f is not None
+        first = self._pieces is None
+        if first:
+            self._pieces, self._schemas, self._chans = [], {}, {}
+            self._cut_channels: dict[str, tuple[Any, Any]] = {}
+            f.seek(0)
+            records = StreamReader(f, emit_chunks=True).records
+            where = [f.tell()]
+        else:
+            assert self._pieces is not None
+            where = [
+                at
+                for at, t0, t1 in self._pieces
+                if (start_ns is None or t1 >= start_ns) and (stop_ns is None or t0 < stop_ns)
+            ]
+        for at in where:
+            if not first:
+                f.seek(at)
+                records = StreamReader(f, skip_magic=True, emit_chunks=True).records
+            while True:
+                here = f.tell()
+                try:
+                    record = next(records)
+                    inner = list(breakup_chunk(record)) if isinstance(record, Chunk) else [record]
+                except StopIteration:
+                    break
+                except Exception:  # the cut: a record, chunk or its compression ends there
+                    return
+                if first and isinstance(record, Chunk):
+                    self._pieces.append((here, record.message_start_time, record.message_end_time))
+                elif first and isinstance(record, Message):
+                    self._pieces.append((here, record.log_time, record.log_time))
+                for r in inner:
+                    if isinstance(r, Schema):
+                        self._schemas[r.id] = r
+                    elif isinstance(r, Channel):
+                        self._chans[r.id] = r
+                        self._cut_channels.setdefault(r.topic, (r, self._schemas.get(r.schema_id)))
+                    elif isinstance(r, Message) and r.channel_id in self._chans:
+                        ch = self._chans[r.channel_id]
+                        if topics is None or ch.topic in topics:
+                            yield self._schemas.get(ch.schema_id), ch, r
+                if not first:
+                    break  # one piece
 
     def _add_channel(self, channel: Any, schema: Any) -> None:
         if schema is None:
@@ -174,7 +212,7 @@ class McapBackend:
         those up to ``_REORDER`` places (or ``_REORDER_BYTES``) out of it are put back in it."""
         heap: list[tuple[int, int, RawMessage]] = []
         held = 0  # bytes of the messages in the heap
-        for n, (_schema, ch, msg) in enumerate(self._records(topics)):
+        for n, (_schema, ch, msg) in enumerate(self._records(topics, start_ns, stop_ns)):
             t = int(msg.log_time)
             if (start_ns is not None and t < start_ns) or (stop_ns is not None and t >= stop_ns):
                 continue

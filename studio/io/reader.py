@@ -135,7 +135,10 @@ def _ros1_backend(files: list[Path]) -> _Backend:
             raise error
         raise RecordingError(f"{files[0]}: no whole message in the bag")
     if error is not None and not backend.notes:
-        backend.notes.append(f"read without its index, which rosbags could not read: {_reason(error)}")
+        backend.notes.append(
+            f"{', '.join(map(str, files))}: read from its chunks: rosbags could not read its index (its "
+            f"recording was interrupted, or the file was cut short?): {_reason(error)}"
+        )
     return backend
 
 
@@ -154,7 +157,10 @@ def _ros2_mcap_backend(path: Path) -> _Backend:
     except Exception:
         raise error from None
     if not backend.notes:  # the mcap library reads what rosbags could not, summary and all
-        backend.notes.append(f"{path}: read with the mcap library; rosbags could not: {_reason(error)}")
+        backend.notes.append(
+            f"{path}: read with the mcap library: rosbags could not read it (its recording was "
+            f"interrupted, or the file was cut short?): {_reason(error)}"
+        )
     return backend
 
 
@@ -365,6 +371,12 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
                 f"{p}: a ROS 2 bag without metadata.yaml (its recording was interrupted): read its "
                 f"{unfinished_ros2.name}"
             ]
+            wal = unfinished_ros2.with_name(unfinished_ros2.name + "-wal")
+            if wal.is_file() and wal.stat().st_size > 0:
+                notes.append(
+                    f"{wal}: the messages still in this write-ahead log are not read (merge them first: "
+                    f"sqlite3 {unfinished_ros2} 'PRAGMA wal_checkpoint;')"
+                )
             p = unfinished_ros2
             files = [p]
             kind = "ros2" if p.suffix == ".db3" or _mcap_profile(p) == "ros2" else "mcap"

@@ -223,16 +223,6 @@ class UnindexedRos1Backend:
                 if f.read(len(_MAGIC)) != _MAGIC:
                     raise RecordingError(f"{paths[b]}: not a ROS1 bag of format 2.0")
                 scan.bag(b, f, paths[b].stat().st_size)
-            self.recovered = scan.per_bag
-            for path, n, indexed in zip(paths, scan.per_bag, scan.indexed, strict=True):
-                if n == 0 and not indexed:
-                    raise RecordingError(f"{path}: a ROS1 bag without its index, and no whole message in it")
-            self.notes = [
-                f"{path}: a ROS1 bag without its index (its recording was interrupted, or the file was cut "
-                f"short): {n} whole messages read from its chunks"
-                for path, n, indexed in zip(paths, scan.per_bag, scan.indexed, strict=True)
-                if not indexed
-            ]
             self._chunks = scan.chunks
             names = sorted(set(scan.conns.values()))
             index = {tm: i for i, tm in enumerate(names)}
@@ -246,7 +236,18 @@ class UnindexedRos1Backend:
             )
             conn = lut[inverse.reshape(-1)] if len(key) else np.zeros(0, dtype=np.int64)
             keep = np.flatnonzero(conn >= 0)  # messages on a connection whose record was lost are left out
-            order = keep[np.argsort(cols["stamp"][keep], kind="stable")]
+            # by receive time, ties as rosbags breaks them: bag by bag, connection by connection
+            order = keep[np.lexsort((cols["conn"][keep], cols["bag"][keep], cols["stamp"][keep]))]
+            per_bag = np.bincount(cols["bag"][keep], minlength=len(paths))
+            self.recovered = [int(n) for n in per_bag]
+            if not len(keep):
+                raise RecordingError(f"{paths[0]}: a ROS1 bag without its index, and no whole message in it")
+            self.notes = [
+                f"{path}: a ROS1 bag without its index (its recording was interrupted, or the file was cut "
+                f"short): {n} whole messages read from its chunks"
+                for path, n, indexed in zip(paths, self.recovered, scan.indexed, strict=True)
+                if not indexed
+            ]
             self._conn_names = names
             self._stamp, self._chunk = cols["stamp"][order], cols["chunk"][order]
             self._offset, self._length, self._conn = cols["offset"][order], cols["length"][order], conn[order]

@@ -265,6 +265,10 @@ def test_an_mcap_file_cut_short_gives_its_whole_messages_in_order(tmp_path):
             assert sum(t.count for t in rec.topics.values()) == len(got)
             scan = rec.decode(next(rec.messages(["/scan_front"])))
             assert scan.ranges.shape == (45,)
+            # a window (the viewer reads one frame's messages at a time) reads only its chunks
+            a, b = got[len(got) // 3][0], got[len(got) // 2][0]
+            window = [(m.log_ns, m.topic, m.rawdata) for m in rec.messages(start_ns=a, stop_ns=b)]
+            assert window == [g for g in got if a <= g[0] < b]
         got_counts.append(len(got))
     assert 0 < got_counts[0] < got_counts[1] < got_counts[2] == len(expected)
     # and it labels: frames of the lasers and the camera as far as the file goes
@@ -338,6 +342,28 @@ def test_a_ros2_sqlite3_bag_folder_without_metadata_reads_its_db3_file(tmp_path)
         assert rec.notes == [note + "rosbag2_db3.db3"]
         assert sorted((m.log_ns, m.topic) for m in rec.messages()) == sorted(expected)
         assert rec.decode(next(rec.messages(["/scan_front"]))).ranges.shape == (45,)
+    # the "resilient" preset writes through a write-ahead log: what is still in it is not read, and said so
+    import shutil
+    import sqlite3
+
+    db = folder / "rosbag2_db3.db3"
+    con = sqlite3.connect(db)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA wal_autocheckpoint=0")
+    con.execute(
+        "insert into messages(topic_id, timestamp, data) select topic_id, timestamp + 10, data from messages"
+    )
+    con.commit()
+    crashed = tmp_path / "crashed"
+    crashed.mkdir()
+    for f in folder.iterdir():
+        shutil.copy(f, crashed / f.name)  # while the writer has it open, as a crash leaves it
+    con.close()
+    with open_recording(crashed) as rec:
+        assert len(rec.notes) == 2
+        assert rec.notes[1].startswith(
+            f"{crashed / 'rosbag2_db3.db3-wal'}: the messages still in this write-ahead"
+        )
 
 
 def test_a_cut_mcap_written_slightly_out_of_order_is_read_in_log_time_order(tmp_path):
@@ -364,3 +390,58 @@ def test_a_cut_mcap_written_slightly_out_of_order_is_read_in_log_time_order(tmp_
     assert 100 < len(got) < 400
     assert [t for t, _ in got] == sorted(t for t, _ in got)
     assert sorted(k for _, k in got) == list(range(len(got)))  # the first ones written, each once
+
+
+def test_ties_and_filters_come_out_as_rosbags_gives_them(tmp_path):
+    """Several connections (two on one topic, one added half-way), equal and out-of-order stamps."""
+    import random
+
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    string = store.types["std_msgs/msg/String"]
+    rng = random.Random(1)
+    t0 = 1_000_000_000_000
+    for compression in ("none", "bz2"):
+        path = tmp_path / f"ties_{compression}.bag"
+        w = Writer(path)
+        if compression != "none":
+            w.set_compression(Writer.CompressionFormat.BZ2)
+        w.chunk_threshold = 300
+        w.open()
+        conns = {
+            k: w.add_connection(t, "std_msgs/msg/String", typestore=store, callerid=k)
+            for k, t in (("a", "/a"), ("b", "/b"), ("a2", "/a"))
+        }
+        for i in range(300):
+            key = rng.choice(["a", "b", "a2"])
+            t = t0 + rng.choice([i, i, i - 3, i + 5]) * 1000
+            w.write(conns[key], t, store.serialize_ros1(string(data=f"{key}{i}"), "std_msgs/msg/String"))
+            if i == 150:
+                conns["c"] = w.add_connection("/c", "std_msgs/msg/String", typestore=store, callerid="c")
+            if i > 150 and i % 7 == 0:
+                w.write(
+                    conns["c"],
+                    t0 + i * 1000,
+                    store.serialize_ros1(string(data=f"c{i}"), "std_msgs/msg/String"),
+                )
+        w.close()
+        for args in ((None, None, None), (["/a"], None, None), (["/b", "/c"], t0 + 50_000, t0 + 200_000)):
+            want = [(m.topic, m.log_ns, m.rawdata) for m in _RosbagsBackend([path], "ros1").messages(*args)]
+            got = [(m.topic, m.log_ns, m.rawdata) for m in UnindexedRos1Backend([path]).messages(*args)]
+            assert got == want
+
+
+def test_a_split_recording_whose_last_bag_holds_nothing_yet_reads_the_others(tmp_path):
+    """``rosbag record --split`` killed right after it opened the next bag: its header only."""
+    folder = tmp_path / "split"
+    folder.mkdir()
+    whole = rewrite(bag("positive/positive_3.bag"), folder / "rec_0.bag")
+    (folder / "rec_1.bag.active").write_bytes(whole.read_bytes()[:4200])
+    with open_recording(folder) as rec:
+        assert sum(1 for _ in rec.messages()) == 345
+        assert rec.notes == [
+            f"{folder / 'rec_1.bag.active'}: a ROS1 bag without its index (its recording was interrupted, "
+            "or the file was cut short): 0 whole messages read from its chunks"
+        ]
