@@ -164,6 +164,19 @@ def _ros2_mcap_backend(path: Path) -> _Backend:
     return backend
 
 
+def _ros2_folder_backend(folder: Path) -> _Backend:
+    """rosbags' reader for a ROS 2 bag folder; when it cannot open one whose only storage file is an MCAP
+    file (cut short: the recorder stopped before it finished it), that file as :func:`_ros2_mcap_backend`
+    reads it."""
+    try:
+        return _RosbagsBackend([folder], "ros2")
+    except Exception:
+        mcaps = sorted(folder.glob("*.mcap"))
+        if len(mcaps) != 1 or any(folder.glob("*.db3")):
+            raise
+    return _ros2_mcap_backend(mcaps[0])
+
+
 def _name_the_bad_bag(paths: list[Path], store: Any) -> None:
     """Raises :class:`RecordingError` naming the first of ``paths`` (ROS1 bags) that cannot be opened alone;
     returns when each can (the error is then in how they go together)."""
@@ -223,7 +236,8 @@ class Recording:
         topics: topic name → :class:`TopicInfo` (type and message count).
         start_ns: log time of the first message, ns (0 when empty).
         end_ns: log time of the last message, ns (0 when empty).
-        notes: what a user should know about how it was read (a ROS1 bag read without its index).
+        notes: what a user should know about how it was read (an unfinished or cut-short file read as far
+            as it goes).
     """
 
     def __init__(self, path: Path, kind: Kind, backend: _Backend, files: tuple[Path, ...] = ()) -> None:
@@ -406,6 +420,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             backend = _ros2_mcap_backend(p)
         elif kind == "ros1":
             backend = _ros1_backend(files)
+        elif p.is_dir():
+            backend = _ros2_folder_backend(p)
         else:
             backend = _RosbagsBackend(files, kind)
     except RecordingError:

@@ -16,7 +16,7 @@ import pytest
 from studio.io import RecordingError, open_recording
 from studio.io.reader import _RosbagsBackend
 from studio.io.ros1_unindexed import UnindexedRos1Backend, is_unindexed_ros1
-from tests.io.io_testdata import bag, write_synthetic
+from tests.io.io_testdata import T0, bag, make_scan, write_synthetic
 
 _HEADER_AT = len(b"#ROSBAG V2.0\n")
 Message = tuple[str, str, int, bytes]
@@ -445,3 +445,19 @@ def test_a_split_recording_whose_last_bag_holds_nothing_yet_reads_the_others(tmp
             f"{folder / 'rec_1.bag.active'}: a ROS1 bag without its index (its recording was interrupted, "
             "or the file was cut short): 0 whole messages read from its chunks"
         ]
+
+
+def test_a_ros2_bag_folder_whose_mcap_file_was_cut_short_is_read_as_far_as_it_goes(tmp_path):
+    """metadata.yaml written (a recorder that writes it as it goes), its one .mcap cut short."""
+    from studio.io import RecordingWriter
+
+    folder = tmp_path / "ros2_bag"
+    whole = rechunk(write_synthetic(tmp_path / "one_chunk.mcap"), tmp_path / "rec.mcap")
+    with RecordingWriter(folder) as w:  # a ROS 2 bag folder of the same recording, for its metadata.yaml
+        w.write_scan("/scan_front", make_scan(T0, "front_laser"))
+    (mcap,) = folder.glob("*.mcap")
+    data = whole.read_bytes()
+    mcap.write_bytes(data[: len(data) // 2])
+    with open_recording(folder) as rec:
+        assert any("without its summary" in n for n in rec.notes)
+        assert sum(1 for _ in rec.messages()) > 100
