@@ -56,9 +56,8 @@ class McapBackend:
         self._file: BinaryIO | None = path.open("rb")
         self.notes: list[str] = []
         self._cut = False  # the file ends before its summary and footer: read record by record
-        self._pieces: list[tuple[int, int, int]] | None = (
-            None  # a cut file's chunks: (offset, first, last ns)
-        )
+        # a cut file's chunks (and messages outside chunks): (file offset, first and last log time, ns)
+        self._pieces: list[tuple[int, int, int]] | None = None
         self._schemas: dict[int, Any] = {}
         self._chans: dict[int, Any] = {}
         try:
@@ -104,11 +103,11 @@ class McapBackend:
         """Channels, counts and span of a file cut short (its recorder stopped before it wrote the
         summary and footer, or a broken copy): one pass over its whole records."""
         counts: dict[str, int] = {}
-        stamps = []
+        first, last = 2**63, -1
         for _schema, ch, msg in self._records(None):
             counts[ch.topic] = counts.get(ch.topic, 0) + 1
-            stamps.append(int(msg.log_time))
-        if not stamps:
+            first, last = min(first, int(msg.log_time)), max(last, int(msg.log_time))
+        if last < 0:
             reason = " ".join(str(error).split()) or type(error).__name__
             raise RecordingError(f"{self.path}: no whole message in the file ({reason[:200]})")
         self._channels = {}
@@ -117,12 +116,12 @@ class McapBackend:
         self.topics = {
             t: TopicInfo(t, self._channels[t][1], counts.get(t, 0)) for t in sorted(self._channels)
         }
-        self.start_ns, self.end_ns = min(stamps), max(stamps)
+        self.start_ns, self.end_ns = first, last
         self._typestore = None
         self._registered = set()
         self.notes.append(
             f"{self.path}: an MCAP file without its summary (its recording was interrupted, or the file was "
-            f"cut short): {len(stamps)} whole messages read"
+            f"cut short): {sum(counts.values())} whole messages read"
         )
 
     def _records(
