@@ -67,7 +67,7 @@ def record(header: dict[str, bytes], data: bytes) -> bytes:
     return struct.pack("<I", len(h)) + h + struct.pack("<I", len(data)) + data
 
 
-def unfinished(whole: Path, dst: Path, open_chunk: list[Message] = ()) -> Path:  # type: ignore[assignment]
+def unfinished(whole: Path, dst: Path, open_chunk: list[Message] | None = None) -> Path:
     """``whole`` as a stopped ``rosbag record`` leaves it: ``index_pos`` 0 and nothing after the last chunk,
     then (with ``open_chunk``) an unterminated uncompressed chunk (its lengths 0) holding those messages."""
     data = bytearray(whole.read_bytes()[: index_pos(whole)])
