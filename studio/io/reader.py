@@ -164,6 +164,61 @@ def _ros2_mcap_backend(path: Path) -> _Backend:
     return backend
 
 
+def _wal_of(db3: Path) -> Path | None:
+    """The non-empty write-ahead log beside a ``.db3`` file (rosbag2's "resilient" storage preset writes
+    through one; a recording stopped by a crash leaves messages in it), or None."""
+    wal = db3.with_name(db3.name + "-wal")
+    return wal if wal.is_file() and wal.stat().st_size > 0 else None
+
+
+class _Db3WithWal:
+    """A ``.db3`` file whose write-ahead log still holds messages: read from a temporary copy into which
+    sqlite merged the log (the recording itself is not written to; rosbags opens databases read-only and
+    would not see the log), deleted on close."""
+
+    def __init__(self, db3: Path) -> None:
+        import shutil
+        import sqlite3
+        import tempfile
+
+        wal = _wal_of(db3)
+        self._tmp = Path(tempfile.mkdtemp(prefix="studio-db3-"))
+        try:
+            copy = self._tmp / db3.name
+            for suffix in ("", "-wal", "-shm"):
+                src = db3.with_name(db3.name + suffix)
+                if src.is_file():
+                    shutil.copyfile(src, self._tmp / src.name)
+            con = sqlite3.connect(copy)
+            try:
+                con.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+            finally:
+                con.close()
+            self._inner = _RosbagsBackend([copy], "ros2")
+        except BaseException:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
+        self.topics, self.start_ns, self.end_ns = self._inner.topics, self._inner.start_ns, self._inner.end_ns
+        self.notes = [
+            f"{wal}: its write-ahead log held messages not yet in {db3.name} (its recording was "
+            "interrupted): read from a temporary copy with the log merged in"
+        ]
+
+    def messages(
+        self, topics: list[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[RawMessage]:
+        return self._inner.messages(topics, start_ns, stop_ns)
+
+    def decode(self, raw: RawMessage) -> Any:
+        return self._inner.decode(raw)
+
+    def close(self) -> None:
+        import shutil
+
+        self._inner.close()
+        shutil.rmtree(self._tmp, ignore_errors=True)
+
+
 def _ros2_folder_backend(folder: Path) -> _Backend:
     """rosbags' reader for a ROS 2 bag folder; when it cannot open one whose only storage file is an MCAP
     file (cut short: the recorder stopped before it finished it), that file as :func:`_ros2_mcap_backend`
@@ -385,12 +440,6 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
                 f"{p}: a ROS 2 bag without metadata.yaml (its recording was interrupted): read its "
                 f"{unfinished_ros2.name}"
             ]
-            wal = unfinished_ros2.with_name(unfinished_ros2.name + "-wal")
-            if wal.is_file() and wal.stat().st_size > 0:
-                notes.append(
-                    f"{wal}: the messages still in this write-ahead log are not read (merge them first: "
-                    f"sqlite3 {unfinished_ros2} 'PRAGMA wal_checkpoint;')"
-                )
             p = unfinished_ros2
             files = [p]
             kind = "ros2" if p.suffix == ".db3" or _mcap_profile(p) == "ros2" else "mcap"
@@ -420,6 +469,8 @@ def open_recording(path: str | os.PathLike[str]) -> Recording:
             backend = _ros2_mcap_backend(p)
         elif kind == "ros1":
             backend = _ros1_backend(files)
+        elif p.suffix == ".db3" and _wal_of(p) is not None:
+            backend = _Db3WithWal(p)
         elif p.is_dir():
             backend = _ros2_folder_backend(p)
         else:

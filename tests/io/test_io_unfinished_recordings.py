@@ -342,7 +342,7 @@ def test_a_ros2_sqlite3_bag_folder_without_metadata_reads_its_db3_file(tmp_path)
         assert rec.notes == [note + "rosbag2_db3.db3"]
         assert sorted((m.log_ns, m.topic) for m in rec.messages()) == sorted(expected)
         assert rec.decode(next(rec.messages(["/scan_front"]))).ranges.shape == (45,)
-    # the "resilient" preset writes through a write-ahead log: what is still in it is not read, and said so
+    # the "resilient" preset writes through a write-ahead log: what is still in it is read from a merged copy
     import shutil
     import sqlite3
 
@@ -362,8 +362,16 @@ def test_a_ros2_sqlite3_bag_folder_without_metadata_reads_its_db3_file(tmp_path)
     with open_recording(crashed) as rec:
         assert len(rec.notes) == 2
         assert rec.notes[1].startswith(
-            f"{crashed / 'rosbag2_db3.db3-wal'}: the messages still in this write-ahead"
+            f"{crashed / 'rosbag2_db3.db3-wal'}: its write-ahead log held messages"
         )
+        assert sum(1 for _ in rec.messages()) == 2 * len(expected)  # those in the log too
+        assert rec.decode(next(rec.messages(["/scan_front"]))).ranges.shape == (45,)
+    # the recording itself is left as it was
+    assert sorted(f.name for f in crashed.iterdir()) == [
+        "rosbag2_db3.db3",
+        "rosbag2_db3.db3-shm",
+        "rosbag2_db3.db3-wal",
+    ]
 
 
 def test_a_cut_mcap_written_slightly_out_of_order_is_read_in_log_time_order(tmp_path):
