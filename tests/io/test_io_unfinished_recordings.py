@@ -22,8 +22,17 @@ _HEADER_AT = len(b"#ROSBAG V2.0\n")
 Message = tuple[str, str, int, bytes]
 
 
-def rewrite(src: Path, dst: Path, compression: str = "none", chunk_bytes: int = 32 * 1024) -> Path:
-    """``src``'s messages in a bag of ``chunk_bytes`` chunks, compressed as told (raw bytes unchanged)."""
+def rewrite(
+    src: Path,
+    dst: Path,
+    compression: str = "none",
+    chunk_bytes: int = 32 * 1024,
+    *,
+    start_ns: int | None = None,
+    stop_ns: int | None = None,
+) -> Path:
+    """``src``'s messages (those logged in ``[start_ns, stop_ns)``) in a bag of ``chunk_bytes`` chunks,
+    compressed as told (raw bytes unchanged)."""
     from rosbags.rosbag1 import Reader, Writer
 
     writer = Writer(dst)
@@ -36,7 +45,7 @@ def rewrite(src: Path, dst: Path, compression: str = "none", chunk_bytes: int = 
             c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
             for c in reader.connections
         }
-        for c, t, raw in reader.messages():
+        for c, t, raw in reader.messages(start=start_ns, stop=stop_ns):
             writer.write(conns[c.id], t, raw)
         writer.close()
     return dst
@@ -161,9 +170,9 @@ def test_an_unfinished_recording_reads_as_far_as_it_got(chunked, tmp_path):
     folder = tmp_path / "split"
     folder.mkdir()
     early = [m for m in expected if m[2] < expected[200][2]]
-    late_src = rewrite(bag("positive/positive_3.bag"), tmp_path / "late_whole.bag")
-    _trim(late_src, folder / "rec_0.bag", stop_ns=expected[200][2])
-    unfinished(_trim(late_src, tmp_path / "late.bag", start_ns=expected[200][2]), folder / "rec_1.bag.active")
+    src, split_at = bag("positive/positive_3.bag"), expected[200][2]
+    rewrite(src, folder / "rec_0.bag", stop_ns=split_at)
+    unfinished(rewrite(src, tmp_path / "late.bag", start_ns=split_at), folder / "rec_1.bag.active")
     with open_recording(folder) as rec:
         assert rec.files == (folder / "rec_0.bag", folder / "rec_1.bag.active")
         msgs = [(m.topic, m.msgtype, m.log_ns, m.rawdata) for m in rec.messages()]
@@ -171,22 +180,6 @@ def test_an_unfinished_recording_reads_as_far_as_it_got(chunked, tmp_path):
         assert len(msgs) == len(expected)
         assert len(rec.notes) == 1
         assert "rec_1.bag.active" in rec.notes[0]
-
-
-def _trim(src: Path, dst: Path, start_ns: int | None = None, stop_ns: int | None = None) -> Path:
-    from rosbags.rosbag1 import Reader, Writer
-
-    writer = Writer(dst)
-    with Reader(src) as reader:
-        writer.open()
-        conns = {
-            c.id: writer.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest)
-            for c in reader.connections
-        }
-        for c, t, raw in reader.messages(start=start_ns, stop=stop_ns):
-            writer.write(conns[c.id], t, raw)
-        writer.close()
-    return dst
 
 
 def test_a_bag_with_no_whole_message_is_one_clear_error(chunked, tmp_path):
