@@ -171,14 +171,15 @@ def box_ap_labels(
     iou_thresholds: Sequence[float] = (0.5, 0.3),
     stamp_tolerance_ns: int = DEFAULT_STAMP_TOLERANCE_NS,
 ) -> dict[float, BoxAPResult]:
-    """Box AP between the ``box`` fields of two label sets, frames aligned as in :func:`align_frames`.
+    """Box AP between the ``box`` fields of two label sets, frames aligned as in :func:`align_frames`
+    (without interpolation: a box belongs to one image).
 
     People without a box are left out on both sides; a predicted person without a score counts as 1.
 
     Returns:
         ``{iou_threshold: BoxAPResult}``.
     """
-    al = align_frames(pred, gt, stamp_tolerance_ns=stamp_tolerance_ns)
+    al = align_frames(pred, gt, stamp_tolerance_ns=stamp_tolerance_ns, interpolate_gap_ns=0)
     out = {}
     for t in iou_thresholds:
         m = BoxAP(width=width, iou_threshold=t)

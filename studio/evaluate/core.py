@@ -152,6 +152,8 @@ class Evaluation:
         splits: ``{"static": …, "moving": …}`` when the prediction file has robot poses and stamps.
         sequences: per-sequence evaluations (only from :func:`evaluate_sequences` with several pairs).
         num_pred_frames_unmatched: predicted frames without a ground-truth frame (ignored).
+        num_frames_interpolated: ground-truth frames compared with predictions interpolated to their stamp
+            (between two predicted frames; :func:`~studio.evaluate.align.align_frames`).
     """
 
     detection: DetectionResult
@@ -164,6 +166,7 @@ class Evaluation:
     splits: Mapping[str, SplitResult] = field(default_factory=dict)
     sequences: Mapping[str, Evaluation] = field(default_factory=dict)
     num_pred_frames_unmatched: int = 0
+    num_frames_interpolated: int = 0
 
     def metrics(self) -> dict[str, Any]:
         """The flat metric dictionary (NaN for undefined values) without splits and sequences."""
@@ -202,6 +205,7 @@ class Evaluation:
             "num_pred": c.num_pred,
             "num_pred_tracks": c.num_pred_tracks,
             "num_pred_frames_unmatched": self.num_pred_frames_unmatched,
+            "num_frames_interpolated": self.num_frames_interpolated,
             "radius": self.radius,
             "frame_matching": self.frame_matching,
         }
@@ -339,12 +343,13 @@ def evaluate_sequences(
     overall = _Run(radius)
     per_seq: dict[str, Evaluation] = {}
     modes: set[str] = set()
-    unmatched = 0
+    unmatched = made = 0
     for name, (p, g) in loaded.items():
         al = align_frames(p, g, stamp_tolerance_ns=stamp_tolerance_ns)
         motion = robot_motion(p, static_speed=static_speed, static_yaw_rate=static_yaw_rate)
         modes.add(al.mode)
         unmatched += al.num_pred_unmatched
+        made += al.num_interpolated
         one = _Run(radius)
         for gf, pf in al.pairs:
             moving = None if pf is None else motion.get(pf.frame)
@@ -352,9 +357,9 @@ def evaluate_sequences(
             if len(loaded) > 1:
                 one.add(name, gf, pf, moving)
         if len(loaded) > 1:
-            per_seq[name] = one.result(al.mode, al.num_pred_unmatched)
+            per_seq[name] = one.result(al.mode, al.num_pred_unmatched, al.num_interpolated)
     mode = modes.pop() if len(modes) == 1 else "mixed"
-    ev = overall.result(mode, unmatched)
+    ev = overall.result(mode, unmatched, made)
     if per_seq:
         ev = replace(ev, sequences=per_seq)
     return ev
@@ -401,7 +406,7 @@ class _Run:
             )
         )
 
-    def result(self, mode: str, unmatched: int) -> Evaluation:
+    def result(self, mode: str, unmatched: int, interpolated: int) -> Evaluation:
         splits: dict[str, SplitResult] = {}
         if any(f.moving is not None for f in self.frames):
             splits["static"] = SplitResult.of([f for f in self.frames if f.moving is False])
@@ -416,6 +421,7 @@ class _Run:
             frame_matching=mode,
             splits=splits,
             num_pred_frames_unmatched=unmatched,
+            num_frames_interpolated=interpolated,
         )
 
 
@@ -440,6 +446,16 @@ def _table(ev: Evaluation) -> str:
         f"  Identity    IDF1 {_f(i.idf1)}   IDP {_f(i.idp)}   IDR {_f(i.idr)}",
         f"  HOTA        HOTA {_f(h.hota)}   DetA {_f(h.deta)}   AssA {_f(h.assa)}   LocA {_f(h.loca)}",
     ]
+    if ev.num_frames_interpolated:
+        lines.append(
+            f"  ({ev.num_frames_interpolated} ground-truth frames lie between two predicted frames: "
+            "compared with the predictions interpolated to their stamps)"
+        )
+    missing = sum(f.pred_frame is None for f in ev.frames)
+    if missing:
+        lines.append(
+            f"  ({missing} ground-truth frames have no predicted frame: their people count as misses)"
+        )
     if ev.num_pred_frames_unmatched:
         lines.append(f"  ({ev.num_pred_frames_unmatched} predicted frames have no ground truth: ignored)")
     if ev.splits:
