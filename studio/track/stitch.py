@@ -37,7 +37,8 @@ Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for
 unlinked, and chains (A → B → C) follow. Tracklets without usable colours (``min_views``) attach by motion
 only, after the described ones are linked; a chain of them that nothing continues goes into the gap of a
 re-identification when it lies in that gap near both ends (someone far away, standing still), and so does
-a piece described by only a few crops whose colours matched no one's closely enough (``fill_max_views``).
+a chain with described pieces whose colours agree with both ends (a piece described by only a few crops,
+``fill_max_views``, as a motion link asks; one described by more, as a re-identification asks).
 """
 
 from __future__ import annotations
@@ -151,7 +152,8 @@ class StitchConfig:
             noisy for the ``reid_max_appearance`` of a re-identification of its own). Session 44
             (``docs/results.md``): ``moving`` seed 8 two switches fewer, a four-view piece of someone 8 m
             away 15 ΔE off their colours; a walker in other clothes seen in ten views (16 ΔE off) stays
-            out. 0: only undescribed pieces.
+            out. 0: only undescribed pieces. A piece described by more observations goes into a gap, alone
+            or in a chain, when its colours are within ``reid_max_appearance`` of both ends' (session 53).
         lost_max_gap_s: longest gap bridged without colours (not both sides described) and without a motion
             bridge, seconds (0: never).
         lost_min_duration_s: both tracklets of such a link span at least this long, seconds.
@@ -425,30 +427,39 @@ def _fill_gaps(
     (someone far away, standing where A ended) are then neither before nor after anything. So is a piece
     the camera described in a few crops only (``fill_max_views``) whose noisy colours were too far from
     A's for a re-identification; it counts as one of them where its colours are within ``max_appearance``
-    of both A's and C's. A free chain of them goes between A and C when it lies inside the gap in time and
-    each joint is at most ``fill_distance + fill_speed · gap`` long; several go in one after another in
-    time. Where it fits several gaps, it goes where more of its joints are motion links (a short gap a
-    walker bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot leave gaps
-    that overlap for long, but only the one who left just before the piece starts continues into it), then
-    where the joints are shortest.
+    of both A's and C's. So does a chain of pieces linked to each other but to nothing else whose described
+    pieces all agree with A's and C's colours: those with a few crops within ``max_appearance``, the others
+    within ``reid_max_appearance`` (session 53: held-out ``moving`` seed 28, a walker lost for 4.6 s and
+    found again as a piece whose first crops showed a neighbour, 12 ΔE off as a whole, linked on to a
+    13-view piece 5 ΔE off; A and C were joined across both and the pieces, 9 s of the person, came out
+    as a track of their own: two switches). A free chain goes between A and C when it lies inside the gap
+    in time and each joint is at most ``fill_distance + fill_speed · gap`` long; several go in one after
+    another in time. Where it fits several gaps, it goes where more of its joints are motion links (a
+    short gap a walker bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot
+    leave gaps that overlap for long, but only the one who left just before the piece starts continues
+    into it), then where the joints are shortest.
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
     prv = {b: a for a, b in links}
-    free = []  # (head, tail) of chains of undescribed tracklets (or a few-view piece) linked to nothing else
+    free = []  # (head, tail, described members) of chains linked to nothing else
     for t in tracklets:
         if t.track_id in prv:
-            continue
-        if t.track_id in described:
-            if t.track_id not in nxt and t.n_app <= cfg.fill_max_views:  # a few noisy views, no link
-                free.append((t, t))
             continue
         chain = [t.track_id]
         while chain[-1] in nxt:
             chain.append(nxt[chain[-1]])
-        if all(c not in described for c in chain):
-            free.append((by_id[chain[0]], by_id[chain[-1]]))
+        free.append((by_id[chain[0]], by_id[chain[-1]], [by_id[c] for c in chain if c in described]))
     free.sort(key=lambda ht: ht[0].start_ns)
+
+    def colours_fit(members: list[Tracklet], a: Tracklet, c: Tracklet) -> bool:
+        """Whether the described members of a chain look like both ends of a gap: a few noisy views within
+        ``max_appearance``, more within ``reid_max_appearance``."""
+        for m in members:
+            limit = cfg.max_appearance if m.n_app <= cfg.fill_max_views else cfg.reid_max_appearance
+            if any(appearance_distance(m.app, h.app) > limit for h in (a, c)):  # type: ignore[arg-type]
+                return False
+        return True
 
     def joint(a: Tracklet, b: Tracklet) -> tuple[int, float] | None:
         """(-1 for a motion link else 0, length) of the joint a → b, or None when it is not allowed."""
@@ -465,16 +476,13 @@ def _fill_gaps(
         if a in described and c in described and (by_id[c].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s
     }
     out = set(links)
-    for head, tail in free:  # in time order; each goes into the gap it continues best (see above)
+    for head, tail, members in free:  # in time order; each goes into the gap it continues best (see above)
         best, best_key = None, (1, np.inf)
         for (a, c), cur in hosts.items():
             end = by_id[c]
             if head.start_ns <= cur.end_ns or tail.end_ns >= end.start_ns:
                 continue
-            if head.track_id in described and any(
-                appearance_distance(head.app, by_id[h].app) > cfg.max_appearance  # type: ignore[arg-type]
-                for h in (a, c)
-            ):
+            if not colours_fit(members, by_id[a], end):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is not None and j2 is not None and (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:

@@ -223,6 +223,23 @@ def test_a_described_piece_that_matched_no_one_goes_into_the_gap_of_a_re_identif
     assert stitch_links([a, replace(piece, app=RED, app_start=RED, app_end=RED), c]) == [(0, 2)]
 
 
+def test_a_chain_of_described_pieces_goes_into_the_gap_of_a_re_identification():
+    # blue is lost at (13.4, 0) and re-identified 21.7 s later; in between they were seen as two pieces
+    # linked to each other: the first in three crops that partly showed a neighbour (12 ΔE off as a whole),
+    # the second in thirteen (2 ΔE off). A → C wins the re-identification (its colours match best); the chain
+    # goes into its gap, where the person was
+    still = (0.0, 0.0)
+    a = tl(0, 20.0, 45.7, (10.0, 0.0), (13.4, 0.0), v=still, app=BLUE)
+    off = lambda d: BLUE + np.array([0.0, 0.0, d, 0.0, 0.0, 0.0], np.float32)  # noqa: E731
+    p1 = tl(1, 50.3, 54.2, (14.5, 2.3), (14.0, 1.95), v=still, app=off(12.0), views=3)
+    p2 = tl(2, 55.2, 59.3, (14.2, 1.86), (15.2, -0.7), v=still, app=off(2.0), views=13)
+    c = tl(3, 67.4, 90.0, (13.2, -0.8), (1.6, 2.6), v=still, app=BLUE)
+    assert stitch_links([a, p1, p2, c]) == [(0, 1), (1, 2), (2, 3)]
+    # the well-described piece 12 ΔE off is someone else: the chain stays out
+    p2_other = replace(p2, app=off(12.0), app_start=off(12.0), app_end=off(12.0))
+    assert stitch_links([a, p1, p2_other, c]) == [(0, 3), (1, 2)]
+
+
 def test_an_undescribed_piece_goes_into_the_gap_it_continues_by_motion():
     # two people wait at one spot and are both re-identified much later; a colourless piece starts 2.4 s
     # after red left, where red was walking to, but nearer where blue (gone for 6.4 s) stood: it continues red
