@@ -81,6 +81,30 @@ def test_a_duplicate_s_hits_outside_the_common_span_stay_a_track_of_their_own() 
     assert [k for k, _ in out[1]] == list(range(10))  # before track 2 began
 
 
+def _alone(k: int, xy: np.ndarray) -> Observations:
+    """Frame ``k`` with one observation (a single leg, or a person the laser saw alone)."""
+    return _frame(k, [xy], legs=False)
+
+
+def test_two_tracks_that_hold_one_person_in_turn_become_one() -> None:
+    # one person walks along x; from frame 20 on the detector finds one leg a frame, 0.4 m apart in the
+    # stride, and two tracks take them in turn: never both observed, always within a stride of each other
+    walker = [np.array([0.035 * k, 0.0]) for k in range(60)]
+    step = np.array([0.2, 0.0])
+    obs = [_alone(k, walker[k] if k < 20 else walker[k] + (step if k % 2 else -step)) for k in range(60)]
+    one = [(k, 0) for k in range(60) if k < 20 or k % 2]
+    two = [(k, 0) for k in range(20, 56) if k % 2 == 0]
+    out, merges = merge_duplicates(obs, {1: one, 2: two})
+    assert merges == [(1, 2)]
+    assert [k for k, _ in out[1]] == [k for k in range(60) if k not in (56, 58)]  # all either held
+    # off (in_turn_m 0), or two people 0.8 m apart seen in turn: two tracks
+    assert merge_duplicates(obs, {1: one, 2: two}, DuplicateConfig(in_turn_m=0.0))[1] == []
+    side = [
+        _alone(k, walker[k] + (np.array([0.0, 0.8]) if k % 2 == 0 and k >= 20 else 0.0)) for k in range(60)
+    ]
+    assert merge_duplicates(side, {1: one, 2: two})[1] == []
+
+
 def test_too_few_shared_frames_are_no_proof() -> None:
     walker = [np.array([0.035 * k, 0.0]) for k in range(30)]
     obs = [_frame(k, [walker[k]]) for k in range(30)]
@@ -95,4 +119,6 @@ def test_the_config_is_checked_and_on_by_default() -> None:
         DuplicateConfig(min_shared=0)
     with pytest.raises(ValueError, match="max_apart_share"):
         DuplicateConfig(max_apart_share=1.0)
+    with pytest.raises(ValueError, match="in_turn_m"):
+        DuplicateConfig(in_turn_m=-0.1)
     assert OfflineConfig().duplicates == DuplicateConfig()
