@@ -92,8 +92,8 @@ def _by_stamp(
             continue
         s = int(f.stamp_ns)  # type: ignore[arg-type]
         k = int(np.searchsorted(pstamps, s, side="left"))
-        if not 0 < k < len(pframes) or int(pstamps[k] - pstamps[k - 1]) > gap:
-            continue
+        if not 0 < k < len(pframes) or pstamps[k] == s or int(pstamps[k] - pstamps[k - 1]) > gap:
+            continue  # (a stamp equal to a predicted frame's that another ground-truth frame took: none)
         out[i] = interpolate_frame(pframes[k - 1], pframes[k], s)
         used[k - 1] = used[k] = True
         made += 1
@@ -157,7 +157,8 @@ def align_frames(
     Args:
         pred: predicted labels.
         gt: ground truth.
-        stamp_tolerance_ns: largest stamp difference for a non-exact match, ns (0: exact stamps only).
+        stamp_tolerance_ns: largest stamp difference for a non-exact match, ns (0: exact stamps only, then
+            interpolation).
         interpolate_gap_ns: largest span of two predicted frames that a ground-truth frame between them is
             interpolated from, ns (None: 2.5 times the median spacing of the predicted stamps; 0: never).
 

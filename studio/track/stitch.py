@@ -43,6 +43,7 @@ a chain with described pieces whose colours agree with both ends (a piece descri
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, replace
 
@@ -144,16 +145,18 @@ class StitchConfig:
             ``overlap_cost`` more; A's later observations are then given up (:func:`link_cuts`). 0: never.
             Session 22 (``docs/results.md``): simulated ``moving`` seeds 1–12 with the camera 65 → 59
             identity switches, laser only 112 → 97.
-        fill_distance, fill_speed: a chain of undescribed tracklets goes into the gap of a
-            re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long (m, m/s).
+        fill_distance, fill_speed: a chain of pieces (undescribed, or see ``fill_max_views``) goes into the
+            gap of a re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long
+            (m, m/s).
         fill_max_views: a described tracklet that nothing links, described by at most this many
             observations, may go into such a gap like an undescribed one when its colours differ from both
             ends' by at most ``max_appearance`` (the median of a few crops of someone far away is too
             noisy for the ``reid_max_appearance`` of a re-identification of its own). Session 44
             (``docs/results.md``): ``moving`` seed 8 two switches fewer, a four-view piece of someone 8 m
             away 15 ΔE off their colours; a walker in other clothes seen in ten views (16 ΔE off) stays
-            out. 0: only undescribed pieces. A piece described by more observations goes into a gap, alone
-            or in a chain, when its colours are within ``reid_max_appearance`` of both ends' (session 53).
+            out. A piece described by more observations goes into a gap, alone or in a chain, when its
+            colours are within ``reid_max_appearance`` of both ends' and the chain holds no
+            re-identification of its own (session 53). 0: only undescribed pieces.
         lost_max_gap_s: longest gap bridged without colours (not both sides described) and without a motion
             bridge, seconds (0: never).
         lost_min_duration_s: both tracklets of such a link span at least this long, seconds.
@@ -421,27 +424,35 @@ def _unjoin(
 def _fill_gaps(
     tracklets: list[Tracklet], links: list[tuple[int, int]], described: set[int], cfg: StitchConfig
 ) -> list[tuple[int, int]]:
-    """Put chains of undescribed tracklets that nothing continues into the gap of a re-identification.
+    """Put chains of pieces that nothing continues into the gap of a re-identification.
 
     Pass 1 joins A → C across a long gap by colours; the pieces the camera could not describe in between
-    (someone far away, standing where A ended) are then neither before nor after anything. So is a piece
-    the camera described in a few crops only (``fill_max_views``) whose noisy colours were too far from
-    A's for a re-identification; it counts as one of them where its colours are within ``max_appearance``
-    of both A's and C's. So does a chain of pieces linked to each other but to nothing else whose described
-    pieces all agree with A's and C's colours: those with a few crops within ``max_appearance``, the others
-    within ``reid_max_appearance`` (session 53: held-out ``moving`` seed 28, a walker lost for 4.6 s and
-    found again as a piece whose first crops showed a neighbour, 12 ΔE off as a whole, linked on to a
-    13-view piece 5 ΔE off; A and C were joined across both and the pieces, 9 s of the person, came out
-    as a track of their own: two switches). A free chain goes between A and C when it lies inside the gap
-    in time and each joint is at most ``fill_distance + fill_speed · gap`` long; several go in one after
-    another in time. Where it fits several gaps, it goes where more of its joints are motion links (a
-    short gap a walker bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot
-    leave gaps that overlap for long, but only the one who left just before the piece starts continues
-    into it), then where the joints are shortest.
+    (someone far away, standing where A ended) are then neither before nor after anything. So is a piece the
+    camera described in a few crops only (``fill_max_views``) whose noisy colours were too far from A's for a
+    re-identification; it counts as one of them where its colours are within ``max_appearance`` of both A's
+    and C's. So does a chain of pieces linked to each other but to nothing else whose described pieces all
+    agree with A's and C's colours: those with a few crops within ``max_appearance``, the others within
+    ``reid_max_appearance``, unless the chain holds a re-identification of its own (session 53: held-out
+    ``moving`` seed 28, a walker lost for 4.6 s and found again as a piece whose first crops showed a
+    neighbour, 12 ΔE off as a whole, linked on to a 13-view piece 5 ΔE off; A and C were joined across both
+    and the pieces, 9 s of the person, came out as a track of their own: two switches). A free chain goes
+    between A and C when it lies inside the gap in time and each joint is at most ``fill_distance + fill_speed
+    · gap`` long; several go in one after another in time. Where it fits several gaps, it goes where more of
+    its joints are motion links (a short gap a walker bridges, within the gates of :func:`_plain_cost`: two
+    people waiting at one spot leave gaps that overlap for long, but only the one who left just before the
+    piece starts continues into it), then where the joints are shortest.
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
     prv = {b: a for a, b in links}
+
+    def chain_reidentifies(chain: list[int]) -> bool:
+        """Whether a chain holds a link across more than ``max_gap_s`` (someone found again: a track of its
+        own, not a piece)."""
+        return any(
+            (by_id[b].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s for a, b in itertools.pairwise(chain)
+        )
+
     free = []  # (head, tail, described members) of chains linked to nothing else
     for t in tracklets:
         if t.track_id in prv:
@@ -449,7 +460,10 @@ def _fill_gaps(
         chain = [t.track_id]
         while chain[-1] in nxt:
             chain.append(nxt[chain[-1]])
-        free.append((by_id[chain[0]], by_id[chain[-1]], [by_id[c] for c in chain if c in described]))
+        members = [by_id[c] for c in chain if c in described]
+        if members and (cfg.fill_max_views <= 0 or chain_reidentifies(chain)):
+            continue  # only undescribed pieces; or a chain that is a re-identification of its own
+        free.append((by_id[chain[0]], by_id[chain[-1]], members))
     free.sort(key=lambda ht: ht[0].start_ns)
 
     def colours_fit(members: list[Tracklet], a: Tracklet, c: Tracklet) -> bool:

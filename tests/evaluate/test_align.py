@@ -141,6 +141,16 @@ def test_a_track_between_two_frames_and_the_largest_gap() -> None:
     assert al.num_interpolated == 11
     al = align_frames(pred, gt, interpolate_gap_ns=2 * DT)
     assert [p is not None for _, p in al.pairs] == [False] * 10 + [True]
+    # two ground-truth frames on one predicted stamp: the second gets nothing, at the first predicted
+    # stamp as elsewhere (not a copy of the frame the first one took)
+    pred3 = LabelSet.from_frames([frame(k, {1: (1.0, 0.0)}, stamp_ns=T0 + k * DT) for k in range(3)])
+    for s in (T0, T0 + DT):
+        gt2 = LabelSet.from_frames(
+            [frame(0, {1: (1.0, 0.0)}, stamp_ns=s), frame(1, {1: (1.0, 0.0)}, stamp_ns=s)]
+        )
+        al = align_frames(pred3, gt2)
+        assert [p is not None for _, p in al.pairs] == [True, False]
+        assert al.num_interpolated == 0
 
 
 def test_index_alignment_when_a_side_has_no_stamps() -> None:

@@ -238,6 +238,18 @@ def test_a_chain_of_described_pieces_goes_into_the_gap_of_a_re_identification():
     # the well-described piece 12 ΔE off is someone else: the chain stays out
     p2_other = replace(p2, app=off(12.0), app_start=off(12.0), app_end=off(12.0))
     assert stitch_links([a, p1, p2_other, c]) == [(0, 3), (1, 2)]
+    # only undescribed pieces when fill_max_views is 0
+    assert stitch_links([a, p1, p2, c], config=StitchConfig(fill_max_views=0)) == [(0, 3), (1, 2)]
+
+
+def test_a_re_identified_chain_is_a_track_not_a_piece_of_another_gap():
+    # two people in the same colours, both lost and found again: the one found inside the other's gap is
+    # a track of their own, not a piece of the other
+    a0 = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=(5.0, 0.0), app=BLUE)
+    a1 = tl(1, 11.0, 15.0, (8.5, 1.0), (8.5, 1.0), v=(0.0, 5.0), app=BLUE)
+    c1 = tl(2, 25.0, 38.0, (8.5, 1.0), (8.5, 1.0), v=(0.0, 5.0), app=BLUE)
+    c0 = tl(3, 40.0, 50.0, (8.0, 0.2), (8.0, 0.2), v=(5.0, 0.0), app=BLUE)
+    assert stitch_links([a0, a1, c1, c0]) == [(0, 3), (1, 2)]
 
 
 def test_an_undescribed_piece_goes_into_the_gap_it_continues_by_motion():
