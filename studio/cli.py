@@ -129,6 +129,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("pred", help="predicted labels (.yaml thesis format or .jsonl)")
     p.add_argument("gt", help="ground truth (.yaml or .jsonl)")
     p.add_argument("--radius", type=_positive_float, default=0.2, help="match radius in metres (default 0.2)")
+    p.add_argument(
+        "--frame",
+        choices=("base", "odom"),
+        default="base",
+        help="compare positions in the robot's base frame (x, y; default) or the odom frame (x_odom, y_odom)",
+    )
     p.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
 
     p = sub.add_parser("view", help="open a run in the Rerun viewer with a blueprint")

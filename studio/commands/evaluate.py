@@ -1,4 +1,4 @@
-"""``studio evaluate PRED GT [--radius M] [--json OUT]``: metrics table, optional JSON (DESIGN.md §2)."""
+"""``studio evaluate PRED GT [--radius M] [--frame base|odom] [--json OUT]``: metrics, JSON (DESIGN §2)."""
 
 from __future__ import annotations
 
@@ -18,8 +18,9 @@ def run(args: argparse.Namespace) -> int:
     if not radius > 0:
         raise StudioError(f"--radius must be a positive number of metres, got {radius}")
     out = out_file(args.json, "--json")
-    ev = evaluate(args.pred, args.gt, radius=radius)
-    print(f"studio evaluate: {args.pred} vs ground truth {args.gt}")
+    ev = evaluate(args.pred, args.gt, radius=radius, frame=args.frame)
+    where = "" if args.frame == "base" else " (positions in the odom frame)"
+    print(f"studio evaluate: {args.pred} vs ground truth {args.gt}{where}")
     print(ev.table())
     if out is not None:
         write_out(out, json.dumps(ev.to_json(), indent=2, allow_nan=False) + "\n", "--json")

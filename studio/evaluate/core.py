@@ -291,11 +291,37 @@ def _load(x: LabelsLike) -> LabelSet:
     return read_labels(path)
 
 
+FRAMES = ("base", "odom")
+
+
+def _in_odom(ls: LabelSet) -> LabelSet:
+    """The label set with every position replaced by its odom-frame one (``x_odom``, ``y_odom``).
+
+    Raises:
+        LabelError: a person without odom-frame coordinates.
+    """
+    frames = []
+    for f in ls.frames:
+        people = []
+        for p in f.people:
+            if p.x_odom is None or p.y_odom is None:
+                name = ls.meta.get("path", "labels")
+                raise LabelError(
+                    f"{name}: frame {f.frame}, person {p.id} has no x_odom / y_odom (needed to compare "
+                    "positions in the odom frame)"
+                )
+            # odom positions are interpolated as they are: no base-frame position to rebuild them from
+            people.append(replace(p, x=p.x_odom, y=p.y_odom, x_odom=None, y_odom=None, cov=None))
+        frames.append(replace(f, people=tuple(people)))
+    return replace(ls, frames=tuple(frames))
+
+
 def evaluate(
     pred: LabelsLike,
     gt: LabelsLike,
     *,
     radius: float = 0.2,
+    frame: str = "base",
     stamp_tolerance_ns: int = DEFAULT_STAMP_TOLERANCE_NS,
     static_speed: float = 0.05,
     static_yaw_rate: float = 0.1,
@@ -306,6 +332,9 @@ def evaluate(
         pred: predictions (a :class:`LabelSet` or a ``.yaml`` / ``.jsonl`` path).
         gt: ground truth (same kinds).
         radius: match radius, metres (a pair at exactly ``radius`` matches).
+        frame: ``"base"`` compares the positions in the robot's base frame (``x``, ``y``), ``"odom"`` those in
+            the odom frame (``x_odom``, ``y_odom``: ground truth annotated on a map of the recording, which
+            every person of both files must then have).
         stamp_tolerance_ns: largest stamp difference when aligning frames by stamp, ns.
         static_speed, static_yaw_rate: robot motion thresholds of the static / moving split (m/s, rad/s).
 
@@ -315,6 +344,7 @@ def evaluate(
     return evaluate_sequences(
         {"0": (pred, gt)},
         radius=radius,
+        frame=frame,
         stamp_tolerance_ns=stamp_tolerance_ns,
         static_speed=static_speed,
         static_yaw_rate=static_yaw_rate,
@@ -325,6 +355,7 @@ def evaluate_sequences(
     pairs: Mapping[str, tuple[LabelsLike, LabelsLike]] | Sequence[tuple[LabelsLike, LabelsLike]],
     *,
     radius: float = 0.2,
+    frame: str = "base",
     stamp_tolerance_ns: int = DEFAULT_STAMP_TOLERANCE_NS,
     static_speed: float = 0.05,
     static_yaw_rate: float = 0.1,
@@ -339,7 +370,11 @@ def evaluate_sequences(
     named = dict(pairs) if isinstance(pairs, Mapping) else {str(k): p for k, p in enumerate(pairs)}
     if not named:
         raise ValueError("no sequence to evaluate")
+    if frame not in FRAMES:
+        raise ValueError(f"frame must be one of {', '.join(FRAMES)}, got {frame!r}")
     loaded = {str(k): (_load(p), _load(g)) for k, (p, g) in named.items()}
+    if frame == "odom":
+        loaded = {k: (_in_odom(p), _in_odom(g)) for k, (p, g) in loaded.items()}
     overall = _Run(radius)
     per_seq: dict[str, Evaluation] = {}
     modes: set[str] = set()

@@ -7,13 +7,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from evalfixtures import frame, random_sequence
 
 from studio.cli import main
 from studio.evaluate import JSON_KEYS
 from studio.geometry.se import Pose2
-from studio.labels import write_labels
+from studio.labels import LabelFrame, LabelPerson, write_labels
 
 DESIGN_KEYS = "precision recall f1 tp fp fn mota motp idf1 hota id_switches mt pt ml num_frames num_gt_tracks"
 
@@ -166,3 +167,44 @@ def test_command_line_process(files: tuple[Path, Path], tmp_path: Path) -> None:
     assert bad.returncode == 2
     assert len(bad.stderr.strip().splitlines()) == 1
     assert "Traceback" not in bad.stderr
+
+
+def test_positions_in_the_odom_frame(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # ground truth annotated on a map of the recording: odom-frame positions; the robot drives along x, so
+    # base-frame positions differ from odom ones and only --frame odom compares like with like
+    t0 = 1_700_000_000_000_000_000
+    gts, preds = [], []
+    for k in range(10):
+        pose = Pose2(0.5 * k, 0.0, 0.0)
+        odom = (3.0, 1.0)
+        base = tuple(float(v) for v in pose.inverse().apply(np.array(odom)))
+        gts.append(LabelFrame(k, (LabelPerson(1, 0.0, 0.0, x_odom=odom[0], y_odom=odom[1]),), t0 + k * 10**8))
+        preds.append(
+            LabelFrame(
+                k, (LabelPerson(7, *base, x_odom=odom[0] + 0.05, y_odom=odom[1]),), t0 + k * 10**8, pose
+            )
+        )
+    write_labels(tmp_path / "gt.jsonl", gts)
+    write_labels(tmp_path / "pred.jsonl", preds)
+    out = tmp_path / "m.json"
+    assert (
+        main(["evaluate", str(tmp_path / "pred.jsonl"), str(tmp_path / "gt.jsonl"), "--json", str(out)]) == 0
+    )
+    assert json.loads(out.read_text())["tp"] < 10  # the ground truth's x, y are no base-frame positions
+    args = ["evaluate", str(tmp_path / "pred.jsonl"), str(tmp_path / "gt.jsonl"), "--frame", "odom"]
+    assert main([*args, "--json", str(out)]) == 0
+    assert "odom frame" in capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert (data["tp"], data["fp"], data["fn"]) == (10, 0, 0)
+    assert data["motp"] == pytest.approx(0.05)
+    # a person without odom-frame coordinates: one line, exit 2
+    write_labels(
+        tmp_path / "bare.jsonl", [frame(k, {1: (3.0, 1.0)}, stamp_ns=t0 + k * 10**8) for k in range(10)]
+    )
+    capsys.readouterr()
+    assert (
+        main(["evaluate", str(tmp_path / "pred.jsonl"), str(tmp_path / "bare.jsonl"), "--frame", "odom"]) == 2
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "x_odom" in err[0]
