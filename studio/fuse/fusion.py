@@ -2,16 +2,18 @@
 
 Laser detections are projected into the panorama with the rig's camera pose (spherical model, no per-face
 homographies). Each person box gets a range estimate from the image alone — the foot row on the floor plane
-(ankle keypoints, else the box bottom), or the apparent torso length when the feet are hidden — and boxes
-are associated one-to-one with laser detections (Hungarian) on column and range consistency. A box that
-finds no detection takes the scan cluster inside its azimuth span closest to the robot (the thesis's
-fallback, here also range-gated); failing that, an image-only position from its range cue with a large
-covariance, unless the laser saw through that spot (then the box is a loose one on someone farther away,
-or no person). A laser detection on never-moving structure may be taken by a box (someone who stood still
-for the whole recording looks static to the laser), but not from behind moving scan points in the box's
-columns: that is the wall seen between the legs of a person the laser detector missed. There is never a
-fixed fallback position. Laser detections no box confirms are kept with source ``laser``; whether they
-survive is decided at the track level.
+(ankle keypoints, else the box bottom), or the apparent torso length when the feet are hidden — and boxes are
+associated one-to-one with laser detections (Hungarian) on column and range consistency. A box the range gate
+kept from every detection takes one inside its columns, nearer than its range, that no box took and that is
+not on never-moving structure: its foot row was read too far (``FusionConfig.nearer_laser``). A box that still
+finds no detection takes the scan cluster inside its azimuth span closest to the robot (the thesis's fallback,
+here also range-gated); failing that, an image-only position from its range cue with a large covariance,
+unless the laser saw through that spot (then the box is a loose one on someone farther away, or no person). A
+laser detection on never-moving structure may be taken by a box (someone who stood still for the whole
+recording looks static to the laser), but not from behind moving scan points in the box's columns: that is the
+wall seen between the legs of a person the laser detector missed. There is never a fixed fallback position.
+Laser detections no box confirms are kept with source ``laser``; whether they survive is decided at the track
+level.
 
 All positions are in the robot base frame, metres; ranges are horizontal distances from the camera centre.
 """
@@ -265,30 +267,43 @@ def fuse_frame(
                         nearer = np.count_nonzero(core & (r_p < r_l[j] - cfg.static_behind))
                         ok[j] = nearer < cfg.cluster_min_points
                 cost[i, ok] = c[ok]
-            rows, cols = linear_sum_assignment(cost)
-            for i, j in zip(rows, cols, strict=True):
-                if cost[i, j] >= _BIG:
-                    continue
+
+            def take(i: int, j: int) -> None:
+                """Box i and laser person j are one person."""
                 used_laser[j] = True
                 # the same person's other leg (or a part of them): inside this box and next to its match
                 near = np.hypot(*(laser.xy - laser.xy[j]).T) <= cfg.same_person_radius
                 off = _offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0)
                 in_box = np.abs(off) <= 1.0 + 2.0 * cfg.box_margin_frac
-                absorbed |= near & in_box
-                beside |= ~near & in_box & (np.abs(r_l - r_l[j]) <= cfg.beside_box_range)
+                absorbed[:] |= near & in_box
+                beside[:] |= ~near & in_box & (np.abs(r_l - r_l[j]) <= cfg.beside_box_range)
                 sc = 1.0 - (1.0 - image.scores[i]) * (1.0 - laser.scores[j])
                 parts.append(
                     _one(
-                        laser.xy[j],
-                        sig_l[j] ** 2 * np.eye(2),
-                        sc,
-                        "fused",
-                        "laser-detection",
-                        boxes[i],
-                        i,
-                        j,
+                        laser.xy[j], sig_l[j] ** 2 * np.eye(2), sc, "fused", "laser-detection", boxes[i], i, j
                     )
                 )
+
+            rows, cols = linear_sum_assignment(cost)
+            for i, j in zip(rows, cols, strict=True):
+                if cost[i, j] < _BIG:
+                    take(int(i), int(j))
+            # A box the range gate kept from every laser person, with one nearer inside it that no box took:
+            # its foot row was read too far, and it is that person's (``FusionConfig.nearer_laser``).
+            taken = set(rows[cost[rows, cols] < _BIG].tolist())
+            for i in np.argsort(br.range) if cfg.nearer_laser else ():
+                if i in taken or not np.isfinite(br.range[i]):
+                    continue
+                off = np.abs(_offset_in_box(u_l, boxes[i, 0], boxes[i, 2], W) / (bw[i] / 2.0))
+                cand = np.flatnonzero(
+                    ~used_laser
+                    & ~absorbed
+                    & ~static
+                    & (off <= 1.0 + 2.0 * cfg.box_margin_frac)
+                    & (r_l < br.range[i])
+                )
+                if len(cand):
+                    take(int(i), int(cand[np.argmin(off[cand])]))
         matched_boxes = {int(p.box_index[0]) for p in parts}
         cam_xy = _cam_xy(camera)
         for i in range(n_b):

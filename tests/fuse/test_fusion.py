@@ -311,3 +311,26 @@ def test_a_box_the_laser_saw_through_makes_no_image_only_position() -> None:
     assert fuse_frame(
         box, None, camera=CAM, rays=wall, config=FusionConfig(see_through_halfwidth=0.0)
     ).source == ("image",)
+
+
+def test_a_box_whose_foot_row_reads_too_far_takes_the_laser_person_inside_it_nearer() -> None:
+    box, kp = person(3.0, 1.0)
+    kp[15:17] = person(4.8, 1.6)[1][15:17]  # the ankles of someone 1.9 m farther on the same bearing
+    img = dets((box, kp))
+    assert box_ranges(img, CAM).range[0] > 4.5
+    obs = fuse_frame(img, laser((3.0, 1.0)), camera=CAM)
+    assert obs.source == ("fused",)
+    assert obs.how == ("laser-detection",)
+    np.testing.assert_allclose(obs.xy[0], [3.0, 1.0])
+    assert obs.box_index[0] == 0
+    apart = fuse_frame(img, laser((3.0, 1.0)), camera=CAM, config=FusionConfig(nearer_laser=False))
+    assert sorted(apart.source) == ["image", "laser"]
+    # not a laser person on never-moving structure (a chair in front of the feet)
+    static = fuse_frame(img, laser((3.0, 1.0)), camera=CAM, laser_static=np.array([True]))
+    assert static.source == ("image",)
+
+
+def test_a_laser_person_beyond_a_box_is_someone_else() -> None:
+    # the box's range is right; the laser person behind it in its columns is another person
+    obs = fuse_frame(dets(person(3.0, 1.0)), laser((5.8, 1.95)), camera=CAM)
+    assert sorted(obs.source) == ["image", "laser"]
