@@ -36,7 +36,8 @@ under a new id, which the evaluator counts as a switch as well.
 Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
 unlinked, and chains (A → B → C) follow. Tracklets without usable colours (``min_views``) attach by motion
 only, after the described ones are linked; a chain of them that nothing continues goes into the gap of a
-re-identification when it lies in that gap near both ends (someone far away, standing still), and so does
+re-identification when it lies in that gap near both ends (someone far away, standing still) or goes on
+by motion from where one end is and lies a walk from the other (someone who walked on), and so does
 a chain with described pieces whose colours agree with both ends (a piece described by only a few crops,
 ``fill_max_views``, as a motion link asks; one described by more, as a re-identification asks).
 """
@@ -147,7 +148,11 @@ class StitchConfig:
             identity switches, laser only 112 → 97.
         fill_distance, fill_speed: a chain of pieces (undescribed, or see ``fill_max_views``) goes into the
             gap of a re-identification when each joint is at most ``fill_distance + fill_speed · gap`` long
-            (m, m/s).
+            (m, m/s), or when one joint is a motion link at most ``fill_distance`` long and the other at most
+            ``fill_distance + max_speed · gap``: the piece goes on from where one end is, and the person
+            walked on to the other (session 54, ``docs/results.md``: held-out ``moving`` seed 35, a walker
+            lost 10 m away and seen again 2 s later on the spot for 2 s by the laser alone, then
+            re-identified 20 s and 13.6 m further on; two switches).
         fill_max_views: a described tracklet that nothing links, described by at most this many
             observations, may go into such a gap like an undescribed one when its colours differ from both
             ends' by at most ``max_appearance`` (the median of a few crops of someone far away is too
@@ -437,10 +442,11 @@ def _fill_gaps(
     neighbour, 12 ΔE off as a whole, linked on to a 13-view piece 5 ΔE off; A and C were joined across both
     and the pieces, 9 s of the person, came out as a track of their own: two switches). A free chain goes
     between A and C when it lies inside the gap in time and each joint is at most ``fill_distance + fill_speed
-    · gap`` long; several go in one after another in time. Where it fits several gaps, it goes where more of
-    its joints are motion links (a short gap a walker bridges, within the gates of :func:`_plain_cost`: two
-    people waiting at one spot leave gaps that overlap for long, but only the one who left just before the
-    piece starts continues into it), then where the joints are shortest.
+    · gap`` long, or one joint is a motion link at most ``fill_distance`` long and the other a walk
+    (``fill_distance + max_speed · gap``); several go in one after another in time. Where it fits several
+    gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the gates
+    of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only the one
+    who left just before the piece starts continues into it), then where the joints are shortest.
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
@@ -475,13 +481,15 @@ def _fill_gaps(
                 return False
         return True
 
-    def joint(a: Tracklet, b: Tracklet) -> tuple[int, float] | None:
-        """(-1 for a motion link else 0, length) of the joint a → b, or None when it is not allowed."""
+    def joint(a: Tracklet, b: Tracklet) -> tuple[int, float, bool] | None:
+        """(-1 for a motion link else 0, length, whether it is short) of the joint a → b, or None when it is
+        not walkable."""
         gap = (b.start_ns - a.end_ns) * 1e-9
         d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
-        if gap <= 0.0 or d > cfg.fill_distance + cfg.fill_speed * gap:
+        if gap <= 0.0 or d > cfg.fill_distance + cfg.max_speed * gap:
             return None
-        return -int(gap <= cfg.max_gap_s and _plain_cost(a, b, cfg) is not None), d
+        motion = gap <= cfg.max_gap_s and _plain_cost(a, b, cfg) is not None
+        return -int(motion), d, d <= cfg.fill_distance + cfg.fill_speed * gap
 
     # the gaps of re-identifications: host (a, c) -> the tracklet its chain reaches so far
     hosts = {
@@ -499,7 +507,14 @@ def _fill_gaps(
             if not colours_fit(members, by_id[a], end):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
-            if j1 is not None and j2 is not None and (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:
+            if j1 is None or j2 is None:
+                continue
+            # both joints short; or one a motion link within fill_distance and the other walkable (a walker's
+            # piece that goes on from where one end is, then walks on to the other)
+            close = any(j[0] < 0 and j[1] <= cfg.fill_distance for j in (j1, j2))
+            if not ((j1[2] and j2[2]) or close):
+                continue
+            if (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:
                 best, best_key = (a, c), key
         if best is not None:
             cur = hosts[best]

@@ -266,6 +266,20 @@ def test_an_undescribed_piece_goes_into_the_gap_it_continues_by_motion():
     assert stitch_links([red_early, red_back, blue, blue_back, piece]) == [(0, 1), (2, 4), (4, 3)]
 
 
+def test_a_piece_that_continues_one_end_by_motion_goes_into_the_gap_however_far_the_other_end():
+    # blue, 10 m away, is lost; 2 s later a colourless piece goes on from where they were for 2 s; blue is
+    # re-identified 20 s after that, 13.6 m away (a walk at 0.7 m/s): the piece is blue's
+    a = tl(0, 0.0, 14.3, (3.3, -2.0), (13.16, -0.02), v=(-0.05, 0.02), app=BLUE)
+    piece = tl(1, 16.3, 18.2, (13.17, -0.03), (13.16, 0.28), v=(0.0, 0.1))
+    c = tl(2, 38.1, 45.0, (0.29, 4.59), (-0.5, 4.7), v=(-0.6, 0.0), app=BLUE)
+    assert stitch_links([a, piece, c]) == [(0, 1), (1, 2)]
+    # without the motion link (the piece starts 5 s after blue left) both joints must be short
+    late = tl(1, 19.3, 21.0, (13.17, -0.03), (13.16, 0.28), v=(0.0, 0.1))
+    assert stitch_links([a, late, c]) == [(0, 2)]
+    # nor where the other end is farther than a walk
+    assert stitch_links([a, piece, replace(c, x_start=np.array([-40.0, 4.59, -0.6, 0.0]))]) == [(0, 2)]
+
+
 def with_hits(t: Tracklet, stamps_s: np.ndarray, xy: np.ndarray) -> Tracklet:
     """``t`` with forward-filtered states at its observations (velocity from the path)."""
     v = np.gradient(xy, stamps_s, axis=0)
