@@ -16,6 +16,19 @@ the observations belong to nobody and the gap fill (:mod:`studio.track.fill`) ma
 whose way they lie on. A hit off the line with nobody else near it (a person turning, or the detector's
 error) stays.
 
+**Ends** (``ends``). Where a track's person is lost (they walk away or are hidden) just as someone else
+appears beside them, the track may take that person's first detections for its own last ones, and that
+person's own track starts right after: an identity switch and a switch back, with no hits after the run
+to draw a line to. At each end of a track, and at each side of a gap in it longer than ``max_s``, the run
+of its last (first) at most ``max_hits`` hits over at most ``max_s`` is taken when every hit of the run
+lies closer to another track, by more than the hit's standard error, than to the track's own
+constant-velocity path from the hits before the run (velocity fitted over the ``velocity_s`` before it),
+and is either farther than ``deviation`` from that path or within ``deviation`` of the other track (where
+two tracks go on along one path, as a colour cut leaves them, neither is closer). The other tracks are
+those observed within ``max_s`` after the run (before it, at a start); one's position is its hit in that
+frame, its straight path through a gap of at most ``max_s``, or, before a later hit, that hit moved back
+along the track's velocity there. The longest such run goes, and at least two hits stay before it.
+
 Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.md, session 29):
 ``moving`` seeds 1–12 identity switches 23 → 20 unperturbed and 147 → 131 under five seeds of 5 mm noise,
 F1 unchanged (0.9611); ``static`` seeds 1–6 under three noise seeds 40 → 28, F1 0.963 → 0.966; ``rooms``
@@ -26,6 +39,7 @@ average under two noise seeds.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -48,15 +62,20 @@ class ExcursionConfig:
         max_hits: longest excursion, in hits.
         max_s: longest time between the hits around an excursion, seconds (over longer spans a walker's
             path is no straight line).
+        ends: also take a run at a track's end that went onto someone whose track goes on (see the
+            module docstring).
+        velocity_s: the track's velocity before an end's run is fitted over this long, seconds.
     """
 
     deviation: float = 0.25
     max_hits: int = 8
     max_s: float = 2.0
+    ends: bool = True
+    velocity_s: float = 1.0
 
     def __post_init__(self) -> None:
-        if self.deviation <= 0 or self.max_hits < 1 or self.max_s <= 0:
-            raise ValueError("deviation and max_s must be positive, max_hits at least 1")
+        if self.deviation <= 0 or self.max_hits < 1 or self.max_s <= 0 or self.velocity_s <= 0:
+            raise ValueError("deviation, max_s and velocity_s must be positive, max_hits at least 1")
 
 
 def detach_excursions(
@@ -91,9 +110,58 @@ def detach_excursions(
                 else:
                     drop[k:end] = True
                     k = end + 1
+        if cfg.ends:
+            # each piece between gaps longer than max_s (the track's end there is an end of its own)
+            t = np.array([obs[i].stamp_ns for i, _ in h], dtype=np.int64)
+            cuts = [0, *(np.flatnonzero(np.diff(t) > cfg.max_s * 1e9) + 1).tolist(), len(h)]
+            for a, b in itertools.pairwise(cuts):
+                for head in (False, True):  # the head of what the tail leaves, two hits before each run
+                    keep = a + np.flatnonzero(~drop[a:b])
+                    if len(keep) >= 3:
+                        drop[keep] |= _end_run([h[m] for m in keep], obs, tid, tracks, cfg, head=head)
         taken += int(drop.sum())
         out[tid] = [hit for hit, d in zip(h, drop, strict=True) if not d]
     return out, taken
+
+
+def _end_run(
+    h: Hits,
+    obs: Sequence[Observations],
+    tid: int,
+    tracks: dict[int, Hits],
+    cfg: ExcursionConfig,
+    *,
+    head: bool,
+) -> np.ndarray:
+    """Which of a track's hits form the run at its end (``head``: at its start) that went onto someone whose
+    track goes on after it (came before it); see the module docstring. All False when there is none."""
+    t, xy = _times_xy(obs, h, head)
+    # each hit's standard error: it must lie closer to the other track by more than that
+    sigma = np.sqrt([np.trace(obs[i].cov[r]) / 2 for i, r in (h[::-1] if head else h)])
+    drop = np.zeros(len(h), dtype=bool)
+    n = len(h)
+    # the others observed within max_s after this track's last hit (in reversed time for a head)
+    others = []
+    for o, ho in tracks.items():
+        if o == tid or not ho:
+            continue
+        to, xyo = _times_xy(obs, ho, head)
+        if np.any((to > t[-1]) & (to <= t[-1] + cfg.max_s * 1e9)):
+            others.append((to, xyo))
+    if not others:
+        return drop
+    for k in range(max(2, n - cfg.max_hits), n):  # the longest run first; two hits before it at least
+        if t[-1] - t[k - 1] > cfg.max_s * 1e9:
+            continue
+        m = t[:k] >= t[k - 1] - cfg.velocity_s * 1e9
+        v = _velocity(t[:k][m], xy[:k][m])
+        ahead = xy[k - 1] + np.outer((t[k:] - t[k - 1]) * 1e-9, v)
+        off = np.hypot(*(xy[k:] - ahead).T)
+        dist = np.array([_nearest_at(others, tm, p, cfg) for tm, p in zip(t[k:], xy[k:], strict=True)])
+        if np.all((dist + sigma[k:] < off) & ((off > cfg.deviation) | (dist < cfg.deviation))):
+            drop[k:] = True
+            break
+    return drop[::-1] if head else drop
 
 
 def _excursion_end(
@@ -122,3 +190,46 @@ def _nearest_other(p: np.ndarray, frame: int, tid: int, paths: dict[int, dict[in
     """Distance from ``p`` to the nearest other track's position in ``frame`` (inf when there is none)."""
     d = [float(np.hypot(*(p - q))) for o, q in paths.get(frame, {}).items() if o != tid]
     return min(d, default=float("inf"))
+
+
+def _times_xy(obs: Sequence[Observations], h: Hits, reverse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A track's hit stamps (ns) and positions; ``reverse``: in reversed time (stamps negated, last first)."""
+    t = np.array([obs[i].stamp_ns for i, _ in h], dtype=np.int64)
+    xy = np.array([obs[i].xy[r] for i, r in h], dtype=np.float64).reshape(-1, 2)
+    return (-t[::-1], xy[::-1]) if reverse else (t, xy)
+
+
+def _velocity(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Least-squares velocity (m/s) through hits at stamps ``t`` (ns); zero without a time span."""
+    s = (t - t.mean()) * 1e-9
+    ss = float(s @ s)
+    return (s @ (xy - xy.mean(axis=0))) / ss if ss > 0 else np.zeros(2)
+
+
+def _nearest_at(
+    others: list[tuple[np.ndarray, np.ndarray]], tm: int, p: np.ndarray, cfg: ExcursionConfig
+) -> float:
+    """Distance from ``p`` to the nearest other track's position at stamp ``tm`` (inf: none known)."""
+    best = float("inf")
+    for to, xyo in others:
+        q = _position(to, xyo, tm, cfg)
+        if q is not None:
+            best = min(best, float(np.hypot(*(p - q))))
+    return best
+
+
+def _position(to: np.ndarray, xyo: np.ndarray, tm: int, cfg: ExcursionConfig) -> np.ndarray | None:
+    """A track's position at stamp ``tm``: its hit, the straight line through a gap of at most ``max_s``,
+    or, up to ``max_s`` before its next hit, that hit moved back along the track's velocity there."""
+    j = int(np.searchsorted(to, tm))  # the first hit at or after tm
+    if j == len(to):
+        return None
+    if to[j] == tm:
+        return xyo[j]
+    if j > 0 and to[j] - to[j - 1] <= cfg.max_s * 1e9:
+        w = (tm - to[j - 1]) / (to[j] - to[j - 1])
+        return (1 - w) * xyo[j - 1] + w * xyo[j]
+    if to[j] - tm > cfg.max_s * 1e9:
+        return None
+    m = to[j:] <= to[j] + cfg.velocity_s * 1e9
+    return xyo[j] + _velocity(to[j:][m], xyo[j:][m]) * (tm - to[j]) * 1e-9

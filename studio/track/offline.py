@@ -20,10 +20,11 @@
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
    had too few described observations on one side for it to judge, its stitched track has enough.
    Then a track's short excursions onto someone else's way (a few observations off its line that lie
-   closer to another track) are taken from it (:mod:`studio.track.excursions`), and last, each track's
-   gaps take the observations no track holds that lie on its way through them (:mod:`studio.track.fill`):
-   a lone detection the online pass could not confirm splits a long gap into pieces short enough to
-   interpolate.
+   closer to another track) are taken from it, and so are its last (first) few observations where they
+   went onto someone whose own track goes on from there (:mod:`studio.track.excursions`), and last, each
+   track's gaps take the observations no track holds that lie on its way through them
+   (:mod:`studio.track.fill`): a lone detection the online pass could not confirm splits a long gap into
+   pieces short enough to interpolate.
 3. Each final track is filtered forward over every frame of its span and **RTS-smoothed**
    (:mod:`studio.track.smooth`); frames inside short gaps get smoothed, *interpolated* positions. An
    observation that another track, unobserved in that frame, passes close by was probably one detection of

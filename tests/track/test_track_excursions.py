@@ -89,7 +89,72 @@ def test_offline_config_can_skip_it():
     assert OfflineConfig(excursions=None).excursions is None
 
 
-@pytest.mark.parametrize("kw", [{"deviation": 0.0}, {"max_hits": 0}, {"max_s": -1.0}])
+@pytest.mark.parametrize("kw", [{"deviation": 0.0}, {"max_hits": 0}, {"max_s": -1.0}, {"velocity_s": 0.0}])
 def test_bad_config(kw):
     with pytest.raises(ValueError, match="must be"):
         ExcursionConfig(**kw)
+
+
+def _hand_over(n=30, grab=(18, 19), walker_leaves=20, stander_from=21):
+    """Row 0: someone walking along y = 0 at 1 m/s until frame ``walker_leaves``; row 1: someone standing at
+    (2.5, 0.4) from frame 18 on. Track 1 (the walker's) holds row 0, and row 1 in the frames ``grab`` at
+    its end; track 2 (the stander's) holds row 1 from ``stander_from`` on."""
+    rows = []
+    for i in range(n):
+        row = [[0.4 + 0.1 * i, 0.0]] if i < walker_leaves and i not in grab else []
+        if i >= 18:
+            row.append([2.5, 0.4])
+        rows.append(row)
+    obs = _frames(rows)
+    walker_hits = [(i, 0) for i in range(walker_leaves) if i not in grab] + [
+        (i, len(rows[i]) - 1) for i in grab
+    ]
+    walker_hits.sort()
+    stander_hits = [(i, len(rows[i]) - 1) for i in range(stander_from, n)]
+    return obs, {1: walker_hits, 2: stander_hits}
+
+
+def test_a_tail_on_the_person_whose_track_goes_on_is_taken():
+    obs, tracks = _hand_over()
+    out, n = detach_excursions(obs, tracks)
+    assert n == 2
+    assert out[1] == tracks[1][:-2]
+    assert out[2] == tracks[2]
+    # and without the rule, or without the track that goes on, it stays
+    _, n = detach_excursions(obs, tracks, ExcursionConfig(ends=False))
+    assert n == 0
+    _, n = detach_excursions(obs, {1: tracks[1]})
+    assert n == 0
+
+
+def test_a_tail_on_the_tracks_own_way_stays():
+    # the walker is seen to the end; the stander's track starts right after
+    obs, tracks = _hand_over(grab=())
+    _, n = detach_excursions(obs, tracks)
+    assert n == 0
+
+
+def test_a_head_on_the_person_whose_track_ended_is_taken():
+    # in reversed time: the stander's track ends, then the walker's begins on the stander's spot
+    rows = []
+    for i in range(30):
+        row = [[2.5, 0.4]] if i <= 12 else []
+        if i >= 11:
+            row.append([0.4 + 0.1 * (40 - i), 0.0])
+        rows.append(row)
+    obs = _frames(rows)
+    stander = [(i, 0) for i in range(11)]
+    walker = [(11, 0), (12, 0)] + [(i, len(rows[i]) - 1) for i in range(13, 30)]
+    out, n = detach_excursions(obs, {1: walker, 2: stander})
+    assert n == 2
+    assert out[1] == walker[2:]
+    assert out[2] == stander
+
+
+def test_two_tracks_along_one_path_keep_their_ends():
+    # one walker's path split in two tracks (as a colour cut leaves them): each end lies on both tracks'
+    # ways, closer to neither
+    obs = _frames([[[0.1 * i, 0.0]] for i in range(30)])
+    tracks = {1: [(i, 0) for i in range(15)], 2: [(i, 0) for i in range(15, 30)]}
+    _, n = detach_excursions(obs, tracks)
+    assert n == 0
