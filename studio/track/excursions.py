@@ -93,6 +93,8 @@ def detach_excursions(
     """
     cfg = config or ExcursionConfig()
     paths = track_paths(obs, tracks)
+    # each track's hit stamps and positions, forward and in reversed time (for the ends)
+    hits = {o: (_times_xy(obs, ho, False), _times_xy(obs, ho, True)) for o, ho in tracks.items() if ho}
     out: dict[int, Hits] = {}
     taken = 0
     for tid, h in tracks.items():
@@ -110,15 +112,16 @@ def detach_excursions(
                 else:
                     drop[k:end] = True
                     k = end + 1
-        if cfg.ends:
+        if cfg.ends and h:
             # each piece between gaps longer than max_s (the track's end there is an end of its own)
-            t = np.array([obs[i].stamp_ns for i, _ in h], dtype=np.int64)
+            t = hits[tid][0][0]
             cuts = [0, *(np.flatnonzero(np.diff(t) > cfg.max_s * 1e9) + 1).tolist(), len(h)]
             for a, b in itertools.pairwise(cuts):
                 for head in (False, True):  # the head of what the tail leaves, two hits before each run
                     keep = a + np.flatnonzero(~drop[a:b])
                     if len(keep) >= 3:
-                        drop[keep] |= _end_run([h[m] for m in keep], obs, tid, tracks, cfg, head=head)
+                        piece = [h[m] for m in keep]
+                        drop[keep] |= _end_run(piece, obs, tid, hits, cfg, head=head)
         taken += int(drop.sum())
         out[tid] = [hit for hit, d in zip(h, drop, strict=True) if not d]
     return out, taken
@@ -128,7 +131,7 @@ def _end_run(
     h: Hits,
     obs: Sequence[Observations],
     tid: int,
-    tracks: dict[int, Hits],
+    hits: dict[int, tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]],
     cfg: ExcursionConfig,
     *,
     head: bool,
@@ -142,11 +145,10 @@ def _end_run(
     n = len(h)
     # the others observed within max_s after this track's last hit (in reversed time for a head)
     others = []
-    for o, ho in tracks.items():
-        if o == tid or not ho:
-            continue
-        to, xyo = _times_xy(obs, ho, head)
-        if np.any((to > t[-1]) & (to <= t[-1] + cfg.max_s * 1e9)):
+    for o, (fwd, back) in hits.items():
+        to, xyo = back if head else fwd
+        j = int(np.searchsorted(to, t[-1], side="right"))
+        if o != tid and j < len(to) and to[j] <= t[-1] + cfg.max_s * 1e9:
             others.append((to, xyo))
     if not others:
         return drop
