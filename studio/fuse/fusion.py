@@ -255,6 +255,7 @@ def fuse_frame(
                     dr = (r_l - br.range[i]) / s
                     gate = np.maximum(cfg.gate_range_min, cfg.gate_sigma * s)
                     ok = inside & (np.abs(r_l - br.range[i]) <= gate)
+                    ok &= ~static | (np.abs(dr) <= cfg.static_gate_sigma)
                     c = off**2 + dr**2
                 else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
                     ok = inside & (r_l <= cfg.max_range)

@@ -334,3 +334,31 @@ def test_a_laser_person_beyond_a_box_is_someone_else() -> None:
     # the box's range is right; the laser person behind it in its columns is another person
     obs = fuse_frame(dets(person(3.0, 1.0)), laser((5.8, 1.95)), camera=CAM)
     assert sorted(obs.source) == ["image", "laser"]
+
+
+def test_a_far_box_takes_structure_only_where_its_range_agrees() -> None:
+    # someone 9.9 m away (foot row ±1.2 m) on the bearing of a door frame the laser finds 3 m nearer: a
+    # moving laser person there would pass the 3 σ range gate; a never-moving one needs 2 σ
+    img = dets(person(9.5, 3.0))
+    br = box_ranges(img, CAM)
+    d = (np.array([9.5, 3.0]) - CAM.pose.t[:2]) / np.hypot(9.4, 3.0)
+
+    def at(r: float) -> LaserDetections:
+        return laser(tuple(CAM.pose.t[:2] + r * d))
+
+    r_door = br.range[0] - 3.0
+    sigma = np.hypot(br.sigma[0], FusionConfig().leg_sigma)
+    assert 2.0 < 3.0 / sigma < 3.0
+    door = fuse_frame(img, at(r_door), camera=CAM, laser_static=np.array([True]))
+    assert door.source == ("image",)
+    assert door.how == ("foot-row",)
+    walker = fuse_frame(img, at(r_door), camera=CAM, laser_static=np.array([False]))
+    assert walker.source == ("fused",)
+    # someone who stood there all along looks static too: their range agrees, and the box takes them
+    still = fuse_frame(img, at(br.range[0] - 0.4), camera=CAM, laser_static=np.array([True]))
+    assert still.source == ("fused",)
+    assert still.how == ("laser-detection",)
+    loose = fuse_frame(
+        img, at(r_door), camera=CAM, laser_static=np.array([True]), config=FusionConfig(static_gate_sigma=3.0)
+    )
+    assert loose.source == ("fused",)
