@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from studio.track import (
     Observations,
@@ -249,3 +250,56 @@ def test_tracks_from_hits_rejects_hits_that_do_not_exist(occluded):
         tracks_from_hits(det.observations, {0: [(0, 99)]})
     with pytest.raises(ValueError, match="two hits in one frame"):
         tracks_from_hits(det.observations, {0: [(0, 0), (0, 0)]})
+
+
+_RED = np.array([50.0, 60, 40, 30, 0, 0], np.float32)
+_BLUE = np.array([50.0, 10, -50, 30, 0, 0], np.float32)
+
+
+def _lost_behind_someone_far(
+    image_only_colours: NDArray[np.float32],
+) -> tuple[list[Observations], list[list[int]]]:
+    """Person 0 (red) walks along +x at 1 m/s, hidden 4-5 s and from 8 s to 14 s; as they are lost, the
+    camera sees person 1 (blue) farther on the same bearing, and those image-only positions (loose in range)
+    join person 0's piece; person 1 is seen standing far away in blue from 10 s on. Per frame, whose each
+    observation is."""
+    nan = np.full(6, np.nan, np.float32)
+    frames, owner = [], []
+    for k in range(200):
+        t = 0.1 * k
+        rows: list[tuple[tuple[float, float], np.ndarray, str, np.ndarray, int]] = []
+        if k < 40 or 50 <= k < 80 or k >= 140:
+            described = ((k < 40 or k >= 140) and k % 2 == 0) or k in (60, 66, 72)
+            rows.append(((t, 0.0), np.eye(2) * 0.05**2, "fused", _RED if described else nan, 0))
+        elif k < 87:  # person 1's box: its foot row puts them 8 % beyond person 0, on their way
+            rows.append(((1.08 * t, 0.0), np.diag([1.3**2, 0.1**2]), "image", image_only_colours, 1))
+        if k >= 100:
+            rows.append(((0.0, 9.0), np.eye(2) * 0.05**2, "fused", _BLUE if k % 2 == 0 else nan, 1))
+        xy, cov, src, app, own = zip(*rows, strict=True) if rows else ((), (), (), (), ())
+        frames.append(
+            Observations.create(
+                1_000_000_000 + k * 100_000_000,
+                np.array(xy).reshape(-1, 2),
+                cov=np.array(cov).reshape(-1, 2, 2),
+                source=list(src),
+                appearance=np.array(app, np.float32).reshape(-1, 6),
+            )
+        )
+        owner.append(list(own))
+    return frames, owner
+
+
+def test_image_only_colours_do_not_outvote_a_tracks_own():
+    # image-only positions of someone else joined the end of person 0's piece between two absences; the
+    # piece's colours are still person 0's, so it goes into the gap of their re-identification (in blue, they
+    # outvoted the piece's own three views, and it stayed a track of its own)
+    for colours in (_RED, _BLUE):
+        frames, owner = _lost_behind_someone_far(colours)
+        res = track_offline(frames)
+        ids = {
+            p.track_id
+            for f, own in zip(res.frames, owner, strict=True)
+            for p in f.points
+            if p.det_index >= 0 and own[p.det_index] == 0
+        }
+        assert len(ids) == 1, colours
