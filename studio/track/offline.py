@@ -45,7 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from studio.track.appearance import APPEARANCE_DIM, median_appearance
+from studio.track.appearance import APPEARANCE_DIM, appearance_distance, median_appearance
 from studio.track.base import Observations, TrackFrame, TrackPoint, TrackResult
 from studio.track.colour_cuts import ColourCutConfig, cut_colour_changes
 from studio.track.duplicates import DuplicateConfig, merge_duplicates
@@ -209,22 +209,30 @@ def _run(
     )
 
 
+# an image-only observation's colours count for its track when within this of its fused ones' median, ΔE
+_IMAGE_ONLY_AGREE = 10.0
+
+
 def _descriptors(obs: Sequence[Observations], hits: _Hits) -> NDArray[np.float32]:
     """(M, D) appearance descriptors of a track's observations that have one.
 
-    Those of image-only observations count only when no other observation of the track has one. An
-    image-only position comes from the box's foot row, whose range is loose far away, so the tracker may
-    give it to someone else on the box's bearing: on simulated ``moving`` seeds 1-10 and 23, 16 % of the
-    image-only observations' colours were more than 15 ΔE from their person's own (9 % nearer someone
-    else's), against 1.9 % (0.8 %) of the fused ones (session 56, ``docs/results.md``)."""
+    Where the track has fused observations with colours, those of its image-only observations count only
+    when they lie within ``_IMAGE_ONLY_AGREE`` of the fused ones' median. An image-only position comes from
+    the box's foot row, whose range is loose far away, so the tracker may give it to someone else on the
+    box's bearing: on simulated ``moving`` seeds 1-10 and 23, 16 % of the image-only observations' colours
+    were more than 15 ΔE from their person's own (9 % nearer someone else's), against 1.9 % (0.8 %) of the
+    fused ones. Dropping them all cost the low-cost-lidar rig (1° beams, more image-only positions) three
+    switches on seeds 1-8 (session 56, ``docs/results.md``)."""
     rows = [
         (obs[i].appearance[r], obs[i].source[r] == "image")  # type: ignore[index]
         for i, r in hits
         if obs[i].appearance is not None
     ]
     rows = [(a, img) for a, img in rows if np.all(np.isfinite(a))]
-    if any(not img for _, img in rows):
-        rows = [(a, img) for a, img in rows if not img]
+    own = [a for a, img in rows if not img]
+    ref = median_appearance(np.array(own, np.float32)) if own and len(own) < len(rows) else None
+    if ref is not None:
+        rows = [(a, img) for a, img in rows if not img or appearance_distance(a, ref) <= _IMAGE_ONLY_AGREE]
     return np.array([a for a, _ in rows], np.float32).reshape(len(rows), APPEARANCE_DIM)
 
 

@@ -303,3 +303,19 @@ def test_image_only_colours_do_not_outvote_a_tracks_own():
             if p.det_index >= 0 and own[p.det_index] == 0
         }
         assert len(ids) == 1, colours
+
+
+def test_image_only_colours_count_where_they_agree_with_the_tracks_fused_ones():
+    from studio.track.offline import _descriptors
+
+    nan = np.full(6, np.nan, np.float32)
+    near_red = _RED + np.array([2.0, 1, -1, 0, 0, 0], np.float32)
+    rows = [("fused", _RED)] * 3 + [("fused", nan), ("image", near_red), ("image", _BLUE), ("image", _BLUE)]
+    frames = [
+        Observations.create(k * 100_000_000, [(0.1 * k, 0.0)], source=src, appearance=[app])
+        for k, (src, app) in enumerate(rows)
+    ]
+    hits = [(k, 0) for k in range(len(frames))]
+    np.testing.assert_array_equal(_descriptors(frames, hits), [_RED] * 3 + [near_red])
+    # a track seen only by the camera keeps all its colours
+    assert len(_descriptors(frames, hits[4:])) == 3
