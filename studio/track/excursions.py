@@ -29,6 +29,13 @@ those observed within ``max_s`` after the run (before it, at a start); one's pos
 frame, its straight path through a gap of at most ``max_s``, or, before a later hit, that hit moved back
 along the track's velocity there. The longest such run goes, and at least two hits stay before it.
 
+A person who stood still and was lost there (hidden while someone walked past them) is found again on the
+same spot, often by the passer-by's track as its last hits, while their own track goes on only after a
+long gap or not at all. So the other tracks also count one that stood still (at most ``stood_speed`` over
+its last ``velocity_s``) at its last hit before the run, if that hit is at most ``stood_s`` before the
+run's end and its next one, if any, more than ``max_s`` after: its position after that hit is that hit.
+Measured in session 56 (docs/results.md).
+
 Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.md, session 29):
 ``moving`` seeds 1–12 identity switches 23 → 20 unperturbed and 147 → 131 under five seeds of 5 mm noise,
 F1 unchanged (0.9611); ``static`` seeds 1–6 under three noise seeds 40 → 28, F1 0.963 → 0.966; ``rooms``
@@ -65,6 +72,10 @@ class ExcursionConfig:
         ends: also take a run at a track's end that went onto someone whose track goes on (see the
             module docstring).
         velocity_s: the track's velocity before an end's run is fitted over this long, seconds.
+        stood_s: an end's run may also have gone onto someone who stood still where their track ended
+            (began) at most this long before (after) the run, seconds; 0 turns this off.
+        stood_speed: a track stood still at its end when its speed over its last ``velocity_s`` (at
+            least three hits) was at most this, m/s.
     """
 
     deviation: float = 0.25
@@ -72,10 +83,14 @@ class ExcursionConfig:
     max_s: float = 2.0
     ends: bool = True
     velocity_s: float = 1.0
+    stood_s: float = 5.0
+    stood_speed: float = 0.2
 
     def __post_init__(self) -> None:
         if self.deviation <= 0 or self.max_hits < 1 or self.max_s <= 0 or self.velocity_s <= 0:
             raise ValueError("deviation, max_s and velocity_s must be positive, max_hits at least 1")
+        if self.stood_s < 0 or self.stood_speed < 0:
+            raise ValueError("stood_s and stood_speed must be 0 or more")
 
 
 def detach_excursions(
@@ -148,8 +163,12 @@ def _end_run(
     for o, (fwd, back) in hits.items():
         to, xyo = back if head else fwd
         j = int(np.searchsorted(to, t[-1], side="right"))
-        if o != tid and j < len(to) and to[j] <= t[-1] + cfg.max_s * 1e9:
-            others.append((to, xyo))
+        if o == tid:
+            continue
+        if j < len(to) and to[j] <= t[-1] + cfg.max_s * 1e9:
+            others.append((to, xyo, -1))
+        elif j > 0 and t[-1] - to[j - 1] <= cfg.stood_s * 1e9 and _stood(to[:j], xyo[:j], cfg):
+            others.append((to, xyo, j - 1))  # lost (or ended) where it stood still
     if not others:
         return drop
     for k in range(max(2, n - cfg.max_hits), n):  # the longest run first; two hits before it at least
@@ -209,21 +228,33 @@ def _velocity(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
 
 
 def _nearest_at(
-    others: list[tuple[np.ndarray, np.ndarray]], tm: int, p: np.ndarray, cfg: ExcursionConfig
+    others: list[tuple[np.ndarray, np.ndarray, int]], tm: int, p: np.ndarray, cfg: ExcursionConfig
 ) -> float:
     """Distance from ``p`` to the nearest other track's position at stamp ``tm`` (inf: none known)."""
     best = float("inf")
-    for to, xyo in others:
-        q = _position(to, xyo, tm, cfg)
+    for to, xyo, stood in others:
+        q = _position(to, xyo, tm, cfg, stood=stood)
         if q is not None:
             best = min(best, float(np.hypot(*(p - q))))
     return best
 
 
-def _position(to: np.ndarray, xyo: np.ndarray, tm: int, cfg: ExcursionConfig) -> np.ndarray | None:
+def _stood(to: np.ndarray, xyo: np.ndarray, cfg: ExcursionConfig) -> bool:
+    """Whether a track stood still at its last hit: at least three hits over the ``velocity_s`` before,
+    fitted speed at most ``stood_speed``."""
+    m = to >= to[-1] - cfg.velocity_s * 1e9
+    return int(m.sum()) >= 3 and float(np.hypot(*_velocity(to[m], xyo[m]))) <= cfg.stood_speed
+
+
+def _position(
+    to: np.ndarray, xyo: np.ndarray, tm: int, cfg: ExcursionConfig, *, stood: int = -1
+) -> np.ndarray | None:
     """A track's position at stamp ``tm``: its hit, the straight line through a gap of at most ``max_s``,
+    for ``stood_s`` after hit ``stood`` (where it stood still before a longer gap, or its end) that hit,
     or, up to ``max_s`` before its next hit, that hit moved back along the track's velocity there."""
     j = int(np.searchsorted(to, tm))  # the first hit at or after tm
+    if stood >= 0 and j == stood + 1 and tm - to[stood] <= cfg.stood_s * 1e9:
+        return xyo[stood]
     if j == len(to):
         return None
     if to[j] == tm:

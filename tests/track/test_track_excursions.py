@@ -89,7 +89,17 @@ def test_offline_config_can_skip_it():
     assert OfflineConfig(excursions=None).excursions is None
 
 
-@pytest.mark.parametrize("kw", [{"deviation": 0.0}, {"max_hits": 0}, {"max_s": -1.0}, {"velocity_s": 0.0}])
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"deviation": 0.0},
+        {"max_hits": 0},
+        {"max_s": -1.0},
+        {"velocity_s": 0.0},
+        {"stood_s": -1.0},
+        {"stood_speed": -0.1},
+    ],
+)
 def test_bad_config(kw):
     with pytest.raises(ValueError, match="must be"):
         ExcursionConfig(**kw)
@@ -149,6 +159,41 @@ def test_a_head_on_the_person_whose_track_ended_is_taken():
     assert n == 2
     assert out[1] == walker[2:]
     assert out[2] == stander
+
+
+def _passer_by(stander_speed=0.0):
+    """Row 0: someone walking along y = 0 at 1 m/s until frame 24; row 1: someone standing at (2.5, 0.4)
+    (or walking there at ``stander_speed`` m/s along x), seen in frames 0-9 and from frame 60 on. Track 1
+    (the walker's) holds row 0, then row 1 in frames 24-27, after the stander was lost for 1.5 s; track 2
+    (the stander's) holds row 1 in frames 0-9 and again from frame 60 (re-identified)."""
+    grab = range(24, 28)
+    rows = []
+    for i in range(80):
+        row = [[0.4 + 0.1 * i, 0.0]] if i < 24 else []
+        if i < 10 or i in grab or i >= 60:
+            row.append([2.5 + stander_speed * 0.1 * min(i - 9, 0), 0.4])
+        rows.append(row)
+    obs = _frames(rows)
+    walker = [(i, 0) for i in range(24)] + [(i, 0) for i in grab]
+    stander = [(i, len(rows[i]) - 1) for i in range(80) if i < 10 or i >= 60]
+    return obs, {1: walker, 2: stander}
+
+
+def test_a_tail_on_someone_who_stood_where_they_were_lost_is_taken():
+    # held-out moving seed 26, frames 326-363: the stander is lost while the walker passes, and the
+    # walker's track takes their next detections for its last ones; the stander's track goes on 3.3 s later
+    obs, tracks = _passer_by()
+    out, n = detach_excursions(obs, tracks)
+    assert n == 4
+    assert out[1] == tracks[1][:-4]
+    assert out[2] == tracks[2]
+    # not without the rule, not when the stander was lost longer before, not when they were walking
+    for cfg in (ExcursionConfig(stood_s=0.0), ExcursionConfig(stood_s=1.0)):
+        _, n = detach_excursions(obs, tracks, cfg)
+        assert n == 0
+    obs, tracks = _passer_by(stander_speed=0.5)
+    _, n = detach_excursions(obs, tracks)
+    assert n == 0
 
 
 def test_two_tracks_along_one_path_keep_their_ends():
