@@ -152,19 +152,21 @@ def _end_run(
     head: bool,
 ) -> np.ndarray:
     """Which of a track's hits form the run at its end (``head``: at its start) that went onto someone whose
-    track goes on after it (came before it); see the module docstring. All False when there is none."""
+    track goes on after it (came before it), or who stood still where their track was lost (begins); see
+    the module docstring. All False when there is none."""
     t, xy = _times_xy(obs, h, head)
     # each hit's standard error: it must lie closer to the other track by more than that
     sigma = np.sqrt([np.trace(obs[i].cov[r]) / 2 for i, r in (h[::-1] if head else h)])
     drop = np.zeros(len(h), dtype=bool)
     n = len(h)
-    # the others observed within max_s after this track's last hit (in reversed time for a head)
+    # the others observed within max_s after this track's last hit, or that stood still at their last hit
+    # before it (in reversed time for a head), with that hit's index (-1: none)
     others = []
     for o, (fwd, back) in hits.items():
-        to, xyo = back if head else fwd
-        j = int(np.searchsorted(to, t[-1], side="right"))
         if o == tid:
             continue
+        to, xyo = back if head else fwd
+        j = int(np.searchsorted(to, t[-1], side="right"))
         if j < len(to) and to[j] <= t[-1] + cfg.max_s * 1e9:
             others.append((to, xyo, -1))
         elif j > 0 and t[-1] - to[j - 1] <= cfg.stood_s * 1e9 and _stood(to[:j], xyo[:j], cfg):
