@@ -49,6 +49,19 @@ def test_crops_like_neither_part_next_to_the_change_take_no_side():
     assert colour_change(_colours((A, 20), (B, 1), (A, 1), (B, 15)), ColourCutConfig()) is None
 
 
+def test_a_track_on_three_people_is_cut_where_each_begins():
+    # the largest change of the medians fell inside the middle person's views, which are like neither
+    # part (held-out moving seed 22 frame 629): the cut moves to an end of them, the rest is cut again
+    C = A + np.array([0.0, 15.0, 30.0, 0.0, 0.0, 0.0])  # 33.5 ΔE from A and from B
+    cfg = ColourCutConfig()
+    for seed in range(10):
+        colours = _colours((A, 40), (C, 15), (B, 30), rng_seed=seed)
+        m = colour_change(colours, cfg)
+        assert m in (40, 55)
+        rest = colour_change(colours[:m], cfg) if m == 55 else m + colour_change(colours[m:], cfg)
+        assert {m, rest} == {40, 55}
+
+
 @pytest.mark.parametrize(
     "runs",
     [
@@ -244,6 +257,15 @@ def _change_by_brute_force(colours, cfg):
 
     n = len(colours)
     best = passing(range(cfg.views, n - cfg.views + 1), cfg.min_change)
+    if best is not None:  # moved to an end of the views around it that are like neither part
+        m = best[1]
+        meds = np.stack([np.median(colours[:m], axis=0), np.median(colours[m:], axis=0)])
+        like_neither = [min(d) >= cfg.min_change for d in appearance_matrix(colours, meds)]
+        run = [k for k in range(n) if all(like_neither[min(k, m) : max(k, m - 1) + 1])]
+        if run:
+            lo, hi = min(run), max(run) + 1
+            near = appearance_matrix(colours[lo:hi], meds).mean(axis=0)
+            best = (best[0], hi if near[0] < near[1] else lo)
     if best is None:  # at either end, end_views to views - 1 descriptors when the change is twice as large
         ends = [
             m for k in range(cfg.end_views or cfg.views, cfg.views) if n - k >= cfg.views for m in (k, n - k)
