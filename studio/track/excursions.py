@@ -36,6 +36,13 @@ its last ``velocity_s``) at its last hit before the run, if that hit is at most 
 run's end and its next one, if any, more than ``max_s`` after: its position after that hit is that hit.
 Measured in session 56 (docs/results.md).
 
+Where the lost person turned, their predicted way misses the run, and the positions cannot tell whose it
+is; the camera can. A run whose hits all lie farther than ``deviation`` from the track's own path is also
+taken when it holds a described hit and each of its described hits lies within ``colour_margin`` ΔE of
+the median colours of one of those other tracks, and nearer them by ``colour_margin`` or more than the
+track's own colours outside the run (both from ``colour_views`` described hits at least). Measured in
+session 57 (docs/results.md).
+
 Measured with ``bench/replay_tracking.py`` on simulator version 4 (docs/results.md, session 29):
 ``moving`` seeds 1–12 identity switches 23 → 20 unperturbed and 147 → 131 under five seeds of 5 mm noise,
 F1 unchanged (0.9611); ``static`` seeds 1–6 under three noise seeds 40 → 28, F1 0.963 → 0.966; ``rooms``
@@ -52,6 +59,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from studio.track.appearance import APPEARANCE_DIM, appearance_matrix
 from studio.track.base import Observations
 from studio.track.fill import track_paths
 from studio.track.swaps import Hits
@@ -76,6 +84,12 @@ class ExcursionConfig:
             (began) at most this long before (after) the run, seconds; 0 turns this off.
         stood_speed: a track stood still at its end when its speed over its last ``velocity_s`` (at
             least three hits) was at most this, m/s.
+        colour_margin: an end's run that left the track's own path but lies nowhere near another track's
+            is still taken when each of its described hits lies within this (ΔE) of the colours of one of
+            those other tracks and nearer them by at least this than the track's own (0 turns this off;
+            see the module docstring).
+        colour_views: described hits the track's own colours (outside the run) and the other track's
+            need for that.
     """
 
     deviation: float = 0.25
@@ -85,12 +99,16 @@ class ExcursionConfig:
     velocity_s: float = 1.0
     stood_s: float = 5.0
     stood_speed: float = 0.2
+    colour_margin: float = 15.0
+    colour_views: int = 3
 
     def __post_init__(self) -> None:
         if self.deviation <= 0 or self.max_hits < 1 or self.max_s <= 0 or self.velocity_s <= 0:
             raise ValueError("deviation, max_s and velocity_s must be positive, max_hits at least 1")
-        if self.stood_s < 0 or self.stood_speed < 0:
-            raise ValueError("stood_s and stood_speed must be 0 or more")
+        if self.stood_s < 0 or self.stood_speed < 0 or self.colour_margin < 0 or self.colour_views < 1:
+            raise ValueError(
+                "stood_s, stood_speed and colour_margin must be 0 or more, colour_views at least 1"
+            )
 
 
 def detach_excursions(
@@ -110,6 +128,7 @@ def detach_excursions(
     paths = track_paths(obs, tracks)
     # each track's hit stamps and positions, forward and in reversed time (for the ends)
     hits = {o: (_times_xy(obs, ho, False), _times_xy(obs, ho, True)) for o, ho in tracks.items() if ho}
+    colours = {o: _median_colours(obs, ho, cfg) for o, ho in tracks.items()} if cfg.colour_margin > 0 else {}
     out: dict[int, Hits] = {}
     taken = 0
     for tid, h in tracks.items():
@@ -136,7 +155,7 @@ def detach_excursions(
                     keep = a + np.flatnonzero(~drop[a:b])
                     if len(keep) >= 3:
                         piece = [h[m] for m in keep]
-                        drop[keep] |= _end_run(piece, obs, tid, hits, cfg, head=head)
+                        drop[keep] |= _end_run(piece, obs, tid, hits, colours, cfg, head=head)
         taken += int(drop.sum())
         out[tid] = [hit for hit, d in zip(h, drop, strict=True) if not d]
     return out, taken
@@ -147,21 +166,24 @@ def _end_run(
     obs: Sequence[Observations],
     tid: int,
     hits: dict[int, tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]],
+    colours: dict[int, np.ndarray | None],
     cfg: ExcursionConfig,
     *,
     head: bool,
 ) -> np.ndarray:
     """Which of a track's hits form the run at its end (``head``: at its start) that went onto someone whose
     track goes on after it (came before it), or who stood still where their track was lost (begins); see
-    the module docstring. All False when there is none."""
+    the module docstring. All False when there is none. ``colours``: each track's median colours, or None
+    (not described enough; empty: the colour test is off)."""
     t, xy = _times_xy(obs, h, head)
+    app = _colours_of(obs, h[::-1] if head else h)
     # each hit's standard error: it must lie closer to the other track by more than that
     sigma = np.sqrt([np.trace(obs[i].cov[r]) / 2 for i, r in (h[::-1] if head else h)])
     drop = np.zeros(len(h), dtype=bool)
     n = len(h)
     # the others observed within max_s after this track's last hit, or that stood still at their last hit
     # before it (in reversed time for a head), with that hit's index (-1: none)
-    others = []
+    others, other_colours = [], []
     for o, (fwd, back) in hits.items():
         if o == tid:
             continue
@@ -171,6 +193,10 @@ def _end_run(
             others.append((to, xyo, -1))
         elif j > 0 and t[-1] - to[j - 1] <= cfg.stood_s * 1e9 and _stood(to[:j], xyo[:j], cfg):
             others.append((to, xyo, j - 1))  # lost (or ended) where it stood still
+        else:
+            continue
+        if colours.get(o) is not None:
+            other_colours.append(colours[o])
     if not others:
         return drop
     for k in range(max(2, n - cfg.max_hits), n):  # the longest run first; two hits before it at least
@@ -181,10 +207,44 @@ def _end_run(
         ahead = xy[k - 1] + np.outer((t[k:] - t[k - 1]) * 1e-9, v)
         off = np.hypot(*(xy[k:] - ahead).T)
         dist = np.array([_nearest_at(others, tm, p, cfg) for tm, p in zip(t[k:], xy[k:], strict=True)])
-        if np.all((dist + sigma[k:] < off) & ((off > cfg.deviation) | (dist < cfg.deviation))):
+        if np.all((dist + sigma[k:] < off) & ((off > cfg.deviation) | (dist < cfg.deviation))) or (
+            np.all(off > cfg.deviation) and _colours_left(app, k, other_colours, cfg)
+        ):
             drop[k:] = True
             break
     return drop[::-1] if head else drop
+
+
+def _colours_of(obs: Sequence[Observations], h: Hits) -> np.ndarray:
+    """(len(h), 6) descriptors of a track's hits, NaN rows where a hit has none."""
+    out = np.full((len(h), APPEARANCE_DIM), np.nan)
+    for m, (i, r) in enumerate(h):
+        if obs[i].appearance is not None:
+            out[m] = obs[i].appearance[r]
+    return out
+
+
+def _median_colours(obs: Sequence[Observations], h: Hits, cfg: ExcursionConfig) -> np.ndarray | None:
+    """A track's median colours, or None with fewer than ``colour_views`` described hits."""
+    app = _colours_of(obs, h)
+    described = app[np.all(np.isfinite(app), axis=1)]
+    return np.median(described, axis=0) if len(described) >= cfg.colour_views else None
+
+
+def _colours_left(app: np.ndarray, k: int, others: list[np.ndarray], cfg: ExcursionConfig) -> bool:
+    """Whether the run ``app[k:]`` holds described hits and each lies within ``colour_margin`` of one of the
+    ``others``' colours and nearer them, by ``colour_margin`` or more, than the colours of ``app[:k]``
+    (``colour_views`` described at least): a crop like nobody (half hidden, or two people in one box) is
+    no evidence."""
+    if not others:
+        return False
+    ok = np.all(np.isfinite(app), axis=1)
+    run, rest = app[k:][ok[k:]], app[:k][ok[:k]]
+    if not len(run) or len(rest) < cfg.colour_views:
+        return False
+    own = appearance_matrix(run, np.median(rest, axis=0))[:, 0]
+    theirs = appearance_matrix(run, np.array(others)).min(axis=1)
+    return bool(np.all((theirs <= cfg.colour_margin) & (theirs + cfg.colour_margin <= own)))
 
 
 def _excursion_end(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -98,6 +100,8 @@ def test_offline_config_can_skip_it():
         {"velocity_s": 0.0},
         {"stood_s": -1.0},
         {"stood_speed": -0.1},
+        {"colour_margin": -1.0},
+        {"colour_views": 0},
     ],
 )
 def test_bad_config(kw):
@@ -194,6 +198,43 @@ def test_a_tail_on_someone_who_stood_where_they_were_lost_is_taken():
     obs, tracks = _passer_by(stander_speed=0.5)
     _, n = detach_excursions(obs, tracks)
     assert n == 0
+
+
+A = np.array([50.0, 10.0, 10.0, 40.0, 0.0, 0.0], np.float32)
+B = A + np.array([0.0, 30.0, 0.0, 0.0, 0.0, 0.0], np.float32)  # 30 ΔE from A: another person
+
+
+def _turn_and_take(first_colours=A):
+    """Someone walks along y = 0 at 1 m/s (track 2, colours A) until frame 10, then turns and walks up x = 1
+    (frames 13-16), where track 1 begins; track 1 then goes on with someone else walking down x = 0.4 from
+    frame 17 (colours B). Track 1's first hit has ``first_colours`` (None: undescribed)."""
+    rows = [[[0.1 * i, 0.0]] for i in range(11)] + [[], []]
+    rows += [[[1.0, 0.8 + 0.1 * (i - 13)]] for i in range(13, 17)]
+    rows += [[[0.4, 1.5 - 0.1 * (i - 17)]] for i in range(17, 41)]
+    colours = {i: A if i <= 10 else B for i in [*range(0, 11, 2), *range(17, 41, 2)]}
+    if first_colours is not None:
+        colours[13] = first_colours
+    obs = _frames(rows)
+    obs = [replace(o, appearance=colours[i][None]) if i in colours else o for i, o in enumerate(obs)]
+    return obs, {1: [(i, 0) for i in range(13, 41)], 2: [(i, 0) for i in range(11)]}
+
+
+def test_a_head_in_the_colours_of_the_track_that_ended_is_taken():
+    # simulated moving seed 12 frame 464: the person turned after their track ended, so the head lies
+    # nearer the track's own path than their predicted way; its one described hit has their colours
+    obs, tracks = _turn_and_take()
+    out, n = detach_excursions(obs, tracks)
+    assert n == 4
+    assert out[1] == tracks[1][4:]
+    assert out[2] == tracks[2]
+    # not without the rule; not when the head shows the track's own colours, or none, or a crop like
+    # nobody (20 ΔE from A, 50 from B: half hidden, or two people in one box)
+    _, n = detach_excursions(obs, tracks, ExcursionConfig(colour_margin=0.0))
+    assert n == 0
+    for colours in (B, None, A - np.array([0.0, 20.0, 0.0, 0.0, 0.0, 0.0], np.float32)):
+        obs, tracks = _turn_and_take(colours)
+        _, n = detach_excursions(obs, tracks)
+        assert n == 0
 
 
 def test_two_tracks_along_one_path_keep_their_ends():
