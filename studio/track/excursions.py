@@ -195,8 +195,8 @@ def _end_run(
             others.append((to, xyo, j - 1))  # lost (or ended) where it stood still
         else:
             continue
-        if colours.get(o) is not None:
-            other_colours.append(colours[o])
+        if (c := colours.get(o)) is not None:
+            other_colours.append(c)
     if not others:
         return drop
     for k in range(max(2, n - cfg.max_hits), n):  # the longest run first; two hits before it at least
@@ -219,8 +219,9 @@ def _colours_of(obs: Sequence[Observations], h: Hits) -> np.ndarray:
     """(len(h), 6) descriptors of a track's hits, NaN rows where a hit has none."""
     out = np.full((len(h), APPEARANCE_DIM), np.nan)
     for m, (i, r) in enumerate(h):
-        if obs[i].appearance is not None:
-            out[m] = obs[i].appearance[r]
+        app = obs[i].appearance
+        if app is not None:
+            out[m] = app[r]
     return out
 
 
