@@ -132,6 +132,13 @@ class StitchConfig:
         reid_max_appearance: largest colour difference of a re-identification.
         min_views: a tracklet's colours count only when at least this many of its observations have a
             descriptor (one crop may show a neighbour or be half occluded).
+        few_views: a tracklet described by at least this many observations, but fewer than ``min_views``,
+            has no colours a link may rest on, yet two crops that both say someone else refuse a motion link
+            to (from) a described tracklet, as ``max_appearance`` does between described ones (0: never).
+            Session 58 (``docs/results.md``): held-out ``moving`` seed 37, person 0 seen twice at 4 m, 48 ΔE
+            from the track of person 5 whom their tracklet was linked to by motion; seeds 21–40 21 → 19
+            identity switches, seeds 1–20 and 41–50 18 → 19; 1 (one crop, perhaps of a neighbour) was no
+            gain.
         unknown_appearance: the appearance term of a motion link when a side has no usable colours, as a
             fraction of ``appearance_weight`` (unknown is not a perfect match; 0.25 × 2 = 0.5, the same term
             as before session 33, so laser-only rigs link as they did).
@@ -185,6 +192,7 @@ class StitchConfig:
     reid_max_appearance: float = 10.0
     reid_cost_per_min: float = 0.2
     min_views: int = 3
+    few_views: int = 2
     unknown_appearance: float = 0.25
     miss_cost: float = 1.5
     max_overlap_s: float = 3.0
@@ -209,12 +217,13 @@ class StitchConfig:
                 self.lost_max_gap_s,
                 self.lost_distance,
                 self.lost_speed,
+                self.few_views,
             )
             < 0
         ):
             raise ValueError(
-                "reid_max_gap_s, reid_cost_per_min, and the lost_* gap, distance and speed must not be "
-                "negative"
+                "reid_max_gap_s, reid_cost_per_min, few_views, and the lost_* gap, distance and speed must "
+                "not be negative"
             )
 
 
@@ -270,9 +279,22 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
         if d > cfg.max_appearance:
             return None
         return cost + cfg.appearance_weight * d / cfg.max_appearance
+    if _few_against(a, b, cfg):
+        return None
     # Unknown appearance is not a perfect match: a tracklet the camera never saw (laser clutter, or
     # someone out of view) must not win over a continuation whose colours agree.
     return cost + cfg.appearance_weight * cfg.unknown_appearance
+
+
+def _few_against(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> bool:
+    """Whether one of A and B is described by ``few_views`` to ``min_views - 1`` observations, the other is
+    described, and their colours where B continues A differ by more than ``max_appearance``."""
+    if cfg.few_views <= 0 or a.app_end is None or b.app_start is None:
+        return False
+    few = lambda t: cfg.few_views <= t.n_app < cfg.min_views  # noqa: E731
+    if not ((few(a) and _described(b, cfg)) or (few(b) and _described(a, cfg))):
+        return False
+    return appearance_distance(a.app_end, b.app_start) > cfg.max_appearance
 
 
 def _described(t: Tracklet, cfg: StitchConfig) -> bool:

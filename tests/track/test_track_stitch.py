@@ -99,6 +99,24 @@ def test_one_to_one_and_chains():
     assert root == {0: 0, 1: 0, 2: 0, 10: 10, 11: 10, 12: 10}
 
 
+def test_two_views_in_other_colours_refuse_a_motion_link():
+    # a piece the camera saw twice, in colours far from those of the track it would continue (held-out
+    # moving seed 37: person 0's two views 48 ΔE from person 5's track): no motion link; in its colours,
+    # seen once (a crop may show a neighbour), or with the rule off, motion decides as before
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    for tracklets in (
+        [a, tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=2)],
+        [
+            tl(1, 0.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=BLUE, views=2),
+            tl(0, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=RED),
+        ],
+    ):
+        assert stitch_links(tracklets) == []
+        assert stitch_links(tracklets, config=StitchConfig(few_views=0)) != []
+    assert stitch_links([a, tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=RED, views=2)]) == [(0, 1)]
+    assert stitch_links([a, tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=1)]) == [(0, 1)]
+
+
 def test_unknown_appearance_does_not_beat_agreeing_colours():
     # A (red) ends; a laser tracklet without colours starts right on its path, a red one a little off it:
     # the red continuation wins, the laser tracklet may only follow the red one
@@ -106,8 +124,9 @@ def test_unknown_appearance_does_not_beat_agreeing_colours():
     laser = tl(1, 10.5, 11.0, (0.5, 0.0), (1.0, 0.0))
     red = tl(2, 11.0, 15.0, (1.1, 0.3), (5.0, 0.3), app=RED)
     assert (0, 2) in stitch_links([a, laser, red])
-    # one or two crops are not enough to judge colours: such a tracklet counts as unknown
-    few = tl(3, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=2)
+    # one crop is not enough to judge colours: such a tracklet counts as unknown (two in other colours
+    # refuse the link since session 58: test_two_views_in_other_colours_refuse_a_motion_link)
+    few = tl(3, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=1)
     assert stitch_links([a, few]) == [(0, 3)]
 
 
@@ -321,7 +340,7 @@ def test_a_tracklet_whose_last_observations_were_a_neighbours_is_continued_from_
     assert link_cuts([plain, b], stitch_links([plain, b])) == {}
 
 
-@pytest.mark.parametrize("field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s"])
+@pytest.mark.parametrize("field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s", "few_views"])
 def test_negative_stitch_options_are_refused(field):
     with pytest.raises(ValueError, match="must not be"):
         StitchConfig(**{field: -1.0})
