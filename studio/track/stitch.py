@@ -135,7 +135,7 @@ class StitchConfig:
         few_views: a tracklet described by at least this many observations, but fewer than ``min_views``,
             has no colours a link may rest on, yet two crops that both say someone else refuse a motion link
             to (from) a described tracklet, as ``max_appearance`` does between described ones (0: never).
-            Session 58 (``docs/results.md``): held-out ``moving`` seed 37, person 0 seen twice at 4 m, 48 ΔE
+            Session 58 (``docs/results.md``): held-out ``moving`` seed 37, person 0 described twice, 48 ΔE
             from the track of person 5 whom their tracklet was linked to by motion; seeds 21–40 21 → 19
             identity switches, seeds 1–20 and 41–50 18 → 19; 1 (one crop, perhaps of a neighbour) was no
             gain.
