@@ -83,7 +83,7 @@ class OfflineConfig:
         claim: options of giving the tracklets of the online pass, before the colour stages, the
             observations nobody took on their way through the frames they coasted (:func:`fill_gaps` with
             a tight radius, no colour test, and gaps up to 0.5 s: the default ``split_gap_s``, a
-            tracklet has no longer ones), or None to skip it. Session 35
+            tracklet has no longer ones, and none searched along the way), or None to skip it. Session 35
             (``docs/results.md``): simulated ``moving`` seeds 1–20, 43 → 40 identity switches, IDF1 0.946 →
             0.953; under three seeds of 5 mm noise 42.3 → 40.0 on average.
         gap_fill: options of giving the tracks' gaps the observations no track holds that lie on their way
@@ -118,7 +118,9 @@ class OfflineConfig:
     encounters: EncounterConfig | None = field(default_factory=EncounterConfig)
     excursions: ExcursionConfig | None = field(default_factory=ExcursionConfig)
     claim: GapFillConfig | None = field(
-        default_factory=lambda: GapFillConfig(radius=0.25, max_gap_s=0.5, max_appearance=math.inf)
+        default_factory=lambda: GapFillConfig(
+            radius=0.25, max_gap_s=0.5, max_appearance=math.inf, path_max_gap_s=0.0
+        )
     )
     gap_fill: GapFillConfig | None = field(default_factory=GapFillConfig)
     duplicates: DuplicateConfig | None = field(default_factory=DuplicateConfig)

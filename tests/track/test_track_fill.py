@@ -105,7 +105,61 @@ def test_a_gap_too_fast_or_too_long_is_not_searched():
     far[40] = obs[40]
     tracks = {7: [(i, 0) for i in [*range(20), *range(60, 90)]]}
     assert fill_gaps(far, tracks)[1] == 0  # 10 m in 4 s: not a straight walk
-    assert fill_gaps(obs, tracks, GapFillConfig(max_gap_s=3.0))[1] == 0
+    assert fill_gaps(obs, tracks, GapFillConfig(max_gap_s=3.0, path_max_gap_s=0.0))[1] == 0
+    # longer than max_gap_s, the gap is searched along the way between its ends, up to path_max_gap_s
+    assert fill_gaps(obs, tracks, GapFillConfig(max_gap_s=3.0))[1] == 1
+    assert fill_gaps(obs, tracks, GapFillConfig(max_gap_s=3.0, path_max_gap_s=3.5))[1] == 0
+
+
+def _waits_then_walks(extra):
+    """Someone lost at (8, 0) at frame 19 who waited there until frame 150, then walked at 0.5 m/s to (10, 0),
+    where they were found again at frame 190 (17 s later); ``extra``: frame → (xy, colours) nobody took."""
+    frames = []
+    for i in range(220):
+        xy, col = [], []
+        if i < 20:
+            xy, col = [[8.0, 0.0]], [A]
+        elif i >= 190:
+            xy, col = [[10.0 + 0.05 * (i - 190), 0.0]], [A]
+        if i in extra:
+            xy, col = xy + extra[i][0], col + extra[i][1]
+        frames.append(_frame(i, xy if xy else np.zeros((0, 2)), col))
+    return frames, {7: [(i, 0) for i in [*range(20), *range(190, 220)]]}
+
+
+def test_a_gap_longer_than_max_gap_s_takes_what_lies_along_the_way():
+    # seen now and then while they waited (every 2 s, 5 cm off), and once while walking on
+    seen = {i: ([[8.0, 0.05]], [None]) for i in range(30, 150, 20)} | {170: ([[9.0, 0.03]], [A])}
+    obs, tracks = _waits_then_walks(seen)
+    out, n = fill_gaps(obs, tracks)
+    assert n == len(seen)
+    assert {i for i, _ in out[7]} >= set(seen)
+    # the straight path in time leaves the spot at 0.12 m/s: only the sighting 1.1 s into the gap lies near it
+    assert fill_gaps(obs, tracks, GapFillConfig(max_gap_s=20.0))[1] == 1
+    assert fill_gaps(obs, tracks, GapFillConfig(path_max_gap_s=0.0))[1] == 0
+
+
+@pytest.mark.parametrize(
+    ("frame", "xy", "colours", "why"),
+    [
+        (60, [[8.0, 0.3]], [None], "0.3 m off the way (path_radius 0.2)"),
+        (25, [[9.9, 0.0]], [None], "where they were found, 0.6 s after they were lost: 1.9 m, too fast"),
+        (185, [[8.1, 0.0]], [None], "where they were lost, 0.5 s before they were found 1.9 m away"),
+        (60, [[8.5, 0.0]], [B], "another person's colours"),
+    ],
+)
+def test_along_the_way_what_is_not_the_persons_stays_out(frame, xy, colours, why):
+    obs, tracks = _waits_then_walks({frame: (xy, colours)})
+    assert fill_gaps(obs, tracks)[1] == 0, why
+
+
+def test_along_the_way_an_observation_near_another_track_stays_out():
+    # someone else stands 0.5 m beside the spot for the whole gap, tracked
+    extra = {i: ([[8.0, 0.5]], [B]) for i in range(20, 190)}
+    extra[60] = ([[8.0, 0.5], [8.0, 0.05]], [B, None])
+    obs, tracks = _waits_then_walks(extra)
+    tracks[8] = [(i, 0) for i in range(20, 190)]
+    assert fill_gaps(obs, tracks)[1] == 0
 
 
 def test_config_is_checked():
@@ -115,6 +169,10 @@ def test_config_is_checked():
         GapFillConfig(clearance=-1.0)
     with pytest.raises(ValueError, match="appearance_views"):
         GapFillConfig(appearance_views=0)
+    with pytest.raises(ValueError, match="path_"):
+        GapFillConfig(path_max_gap_s=-1.0)
+    with pytest.raises(ValueError, match="path_"):
+        GapFillConfig(path_radius=0.0)
 
 
 def test_offline_tracking_bridges_a_long_gap_through_a_lone_detection():
