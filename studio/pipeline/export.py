@@ -140,6 +140,12 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "- Someone who stands on one spot for most of the time the laser sees it may be filtered out as "
         "structure, unless the laser saw the spot empty from within 4 m while the robot moved.",
     ]
+    if options.method == "studio":
+        lines.append(
+            f"- A track spanning less than {options.tracking.min_track_duration_s:g} s is left out: someone "
+            "seen only that briefly has no label (most such pieces were a few frames of someone whose own "
+            "track went on around them)."
+        )
     if (cam is None or options.sources == "laser") and options.min_walk_m > 0:
         lines.append(
             f"- Without the camera a track is kept only if it walked {options.min_walk_m:g} m somewhere "

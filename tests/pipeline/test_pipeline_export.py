@@ -57,6 +57,7 @@ def test_the_dataset_card_says_how_the_labels_were_made(run: Path) -> None:
         assert part in card
     assert "movenet" in card
     assert "bridge a gap of up to 3 s with the smoother" in card  # the run's own tracking setting
+    assert "A track spanning less than 1.5 s is left out" in card
     # the simulated scanners' beams, and which leg model they got
     assert card.count("beams 0.25° apart (leg model for fine beams)") == 2
 

@@ -63,6 +63,19 @@ def test_camera_only_person_is_tracked_whatever_the_frame_rate(fps, period):
     assert np.median(err) < 0.1
 
 
+@pytest.mark.parametrize(("seconds", "labelled"), [(1.4, False), (1.8, True)])
+def test_someone_seen_for_less_than_1_5_s_gets_no_label(seconds, labelled):
+    """A track spanning less than 1.5 s is left out (``PIPELINE_TRACKING.min_track_duration_s``): most such
+    pieces are a few frames of someone whose own track goes on around them. 1.4 s of observations (seven,
+    1.2 s from first to last) passed the pipeline's own ``min_track_s`` of 1 s before session 60."""
+    frames, fused = _camera_only_run(10.0, 0.2, seconds=seconds)
+    labels, _ = track_all(frames, fused, LabelOptions(image_period_s=0.2), has_camera=True)
+    ids = {p.id for lf in labels for p in lf.people}
+    assert (len(ids) == 1) == labelled, ids
+    assert len(ids) <= 1
+    assert LabelOptions().min_track_s < LabelOptions().tracking.min_track_duration_s == 1.5
+
+
 def test_tracking_windows_follow_the_image_period():
     base = LabelOptions().tracking
     at = {p: tracking_config(LabelOptions(image_period_s=p), has_camera=True) for p in (0.0, 0.2, 0.4)}
