@@ -139,6 +139,12 @@ class StitchConfig:
             from the track of person 5 whom their tracklet was linked to by motion; seeds 21–40 21 → 19
             identity switches, seeds 1–20 and 41–50 18 → 19; 1 (one crop, perhaps of a neighbour) was no
             gain.
+        few_max_appearance: the colour difference (ΔE) over which those two crops refuse the link. Until
+            session 60 it was ``max_appearance`` (25); held-out seed 22 linked person 1's track by motion to
+            a piece of person 5 that walked on where person 1 left view, seen twice, 24 ΔE from person 1's
+            colours and 4–6 ΔE from person 5's (two switches). Medians of ten views differ by 6.5 ΔE or less
+            for one person in 95 % of cases and by 12.9 or more for two people (:mod:`.appearance`); two
+            views are noisier, hence the margin over both.
         unknown_appearance: the appearance term of a motion link when a side has no usable colours, as a
             fraction of ``appearance_weight`` (unknown is not a perfect match; 0.25 × 2 = 0.5, the same term
             as before session 33, so laser-only rigs link as they did).
@@ -193,6 +199,7 @@ class StitchConfig:
     reid_cost_per_min: float = 0.2
     min_views: int = 3
     few_views: int = 2
+    few_max_appearance: float = 20.0
     unknown_appearance: float = 0.25
     miss_cost: float = 1.5
     max_overlap_s: float = 3.0
@@ -208,8 +215,10 @@ class StitchConfig:
     tail_back_s: float = 0.5
 
     def __post_init__(self) -> None:
-        if self.max_gap_s <= 0 or self.max_appearance <= 0 or self.reid_max_appearance <= 0:
-            raise ValueError("max_gap_s, max_appearance and reid_max_appearance must be positive")
+        if min(self.max_gap_s, self.max_appearance, self.reid_max_appearance, self.few_max_appearance) <= 0:
+            raise ValueError(
+                "max_gap_s, max_appearance, reid_max_appearance and few_max_appearance must be positive"
+            )
         if (
             min(
                 self.reid_max_gap_s,
@@ -288,13 +297,13 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
 
 def _few_against(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> bool:
     """Whether one of A and B is described by ``few_views`` to ``min_views - 1`` observations, the other is
-    described, and their colours where B continues A differ by more than ``max_appearance``."""
+    described, and their colours where B continues A differ by more than ``few_max_appearance``."""
     if cfg.few_views <= 0 or a.app_end is None or b.app_start is None:
         return False
     few = lambda t: cfg.few_views <= t.n_app < cfg.min_views  # noqa: E731
     if not ((few(a) and _described(b, cfg)) or (few(b) and _described(a, cfg))):
         return False
-    return appearance_distance(a.app_end, b.app_start) > cfg.max_appearance
+    return appearance_distance(a.app_end, b.app_start) > cfg.few_max_appearance
 
 
 def _described(t: Tracklet, cfg: StitchConfig) -> bool:

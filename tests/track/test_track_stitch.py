@@ -117,6 +117,23 @@ def test_two_views_in_other_colours_refuse_a_motion_link():
     assert stitch_links([a, tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=BLUE, views=1)]) == [(0, 1)]
 
 
+def test_two_views_more_than_20_apart_refuse_a_motion_link():
+    # held-out moving seed 22: a piece seen twice, 24 ΔE from the track it continues by motion (person 5
+    # walking on where person 1 left view); the motion-link gate of described tracklets (25) let it join
+    from studio.track.appearance import appearance_distance
+
+    a = tl(0, 5.0, 10.0, (-5.0, 0.0), (0.0, 0.0), app=RED)
+    other = RED + np.array([0.0, -23.0, 0.0, 0.0, 0.0, 0.0], np.float32)
+    assert 20.0 < appearance_distance(RED, other) < 25.0
+    piece = tl(1, 11.0, 15.0, (1.0, 0.0), (5.0, 0.0), app=other, views=2)
+    assert stitch_links([a, piece]) == []
+    assert stitch_links([a, piece], config=StitchConfig(few_max_appearance=25.0)) == [(0, 1)]
+    # described by ten views the same colours are a motion link's, within max_appearance
+    assert stitch_links([a, replace(piece, n_app=10)]) == [(0, 1)]
+    with pytest.raises(ValueError, match="few_max_appearance"):
+        StitchConfig(few_max_appearance=0.0)
+
+
 def test_unknown_appearance_does_not_beat_agreeing_colours():
     # A (red) ends; a laser tracklet without colours starts right on its path, a red one a little off it:
     # the red continuation wins, the laser tracklet may only follow the red one
