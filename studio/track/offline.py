@@ -14,7 +14,10 @@
    the tracklets are filtered and RTS-smoothed on their own and then **stitched** across gaps
    (:mod:`studio.track.stitch`: motion + appearance, solved globally); a continuation takes the id of the
    tracklet it continues, and one that started before the tracklet it continues ended (its tail had left
-   the person), or that continues it from an observation shortly before its last one, replaces that tail.
+   the person), or that continues it from an observation shortly before its last one, replaces that tail
+   — unless the tail is the one that lies on the joint way, the straight line from the kept observation
+   before the overlap to the continuation's first observation after it (``overlap_margin``): then the
+   continuation's own first observations were someone else's, and they are given up instead.
    Where two stitched tracks come close, the detections they held there are distributed between them
    again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
    colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
@@ -57,7 +60,7 @@ from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, 
 from studio.track.swaps import SwapConfig, repair_swaps
 from studio.track.ukf import UkfTracker, UkfTrackerConfig
 
-__all__ = ["OfflineConfig", "track_offline", "tracks_from_hits"]
+__all__ = ["OfflineConfig", "join_chains", "track_offline", "tracks_from_hits"]
 
 FloatArray = NDArray[np.float64]
 
@@ -109,6 +112,13 @@ class OfflineConfig:
             position, in a frame where that track has no observation, is taken for one detection of both
             people, metres (0: never).
         shared_sigma: such an observation's covariance is widened by this standard deviation, metres.
+        overlap_margin: where stitching links B to A although B began before A ended, A's observations in
+            the overlap are kept and B's given up when A's lie nearer, on average by more than this, to the
+            straight line from A's last kept observation before the overlap to B's first one after it
+            (over at most ``interpolate_max_gap_s``), metres (0: B's always win, as before session 60).
+            Held-out simulated ``moving`` seed 29 (session 60, ``docs/results.md``): a tracklet that began on
+            person 3's second leg beside their own track and went on with person 2 took person 2's track
+            over from 1.6 s back, and 1.1 s of person 2 came out on person 3; two switches.
     """
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
@@ -136,6 +146,7 @@ class OfflineConfig:
     renumber: bool = True
     shared_radius: float = 0.6
     shared_sigma: float = 0.3
+    overlap_margin: float = 0.15
 
     def __post_init__(self) -> None:
         if (
@@ -147,8 +158,8 @@ class OfflineConfig:
                 "interpolate_max_gap_s and interpolate_any_speed_s must be non-negative, "
                 "interpolate_max_speed positive"
             )
-        if self.shared_radius < 0 or self.shared_sigma < 0:
-            raise ValueError("shared_radius and shared_sigma must be non-negative")
+        if self.shared_radius < 0 or self.shared_sigma < 0 or self.overlap_margin < 0:
+            raise ValueError("shared_radius, shared_sigma and overlap_margin must be non-negative")
 
 
 # A track's hits: (frame index, row in that frame's Observations), in frame order.
@@ -384,14 +395,7 @@ def track_offline(
         cuts = link_cuts(summaries, links, config=cfg.stitch)
     else:
         root = {tid: tid for tid in tracklets}
-    merged: dict[int, _Hits] = {}
-    # chain members in order of their start: one that starts before the previous one ended takes over
-    # from there, or from where stitching cut the previous one (the previous one's tail is given up)
-    for tid, h in sorted(tracklets.items(), key=lambda kv: kv[1][0][0]):
-        chain = merged.setdefault(root[tid], [])
-        cut = cuts.get(tid)
-        kept = [x for x in chain if x[0] < h[0][0] and (cut is None or obs[x[0]].stamp_ns <= cut)]
-        chain[:] = kept + h
+    merged = join_chains(obs, tracklets, root, cuts, cfg)
     if cfg.encounters is not None and len(merged) > 1:
 
         def estimate(h: _Hits) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -410,6 +414,53 @@ def track_offline(
     if cfg.gap_fill is not None:
         merged, _ = fill_gaps(obs, merged, cfg.gap_fill)
     return _output(obs, merged, cfg, cache)
+
+
+def join_chains(
+    obs: Sequence[Observations],
+    tracklets: dict[int, _Hits],
+    root: dict[int, int],
+    cuts: dict[int, int],
+    cfg: OfflineConfig,
+) -> dict[int, _Hits]:
+    """The hits of each stitched chain (keyed by its first tracklet's id, ``root``), its tracklets joined in
+    order of their start. One that starts before the previous one ended takes over from there, or from
+    where stitching cut the previous one (``cuts``: tracklet id → stamp of the previous one's last hit to
+    keep, :func:`~studio.track.stitch.link_cuts`), and the previous one's tail is given up — unless that tail
+    is the one on the joint way (``overlap_margin``): then the new one's hits up to the tail's end are."""
+    merged: dict[int, _Hits] = {}
+    for tid, h in sorted(tracklets.items(), key=lambda kv: kv[1][0][0]):
+        chain = merged.setdefault(root[tid], [])
+        cut = cuts.get(tid)
+        kept = [x for x in chain if x[0] < h[0][0] and (cut is None or obs[x[0]].stamp_ns <= cut)]
+        after = [x for x in h if chain and x[0] > chain[-1][0]]
+        if _tail_on_the_way(obs, kept, chain[len(kept) :], h[: len(h) - len(after)], after, cfg):
+            chain[:] = chain + after
+        else:
+            chain[:] = kept + h
+    return merged
+
+
+def _tail_on_the_way(
+    obs: Sequence[Observations], kept: _Hits, tail: _Hits, head: _Hits, after: _Hits, cfg: OfflineConfig
+) -> bool:
+    """Whether, where B (``head`` + ``after``) continues A (``kept`` + ``tail``) from within A, A's ``tail``
+    rather than B's ``head`` (the hits of the overlap) lies on the joint way: the straight line from A's
+    last kept hit to B's first hit ``after`` A's end, nearer on average by more than ``overlap_margin``."""
+    if cfg.overlap_margin <= 0 or not (kept and tail and head and after):
+        return False
+    (i0, r0), (i1, r1) = kept[-1], after[0]
+    t0, t1 = obs[i0].stamp_ns, obs[i1].stamp_ns
+    if (t1 - t0) * 1e-9 > cfg.interpolate_max_gap_s:
+        return False
+    p0, p1 = obs[i0].xy[r0], obs[i1].xy[r1]
+
+    def off_the_way(hits: _Hits) -> float:
+        w = np.array([(obs[i].stamp_ns - t0) / (t1 - t0) for i, _ in hits])[:, None]
+        xy = np.array([obs[i].xy[r] for i, r in hits], dtype=np.float64)
+        return float(np.mean(np.hypot(*(xy - ((1.0 - w) * p0 + w * p1)).T)))
+
+    return off_the_way(tail) + cfg.overlap_margin < off_the_way(head)
 
 
 def tracks_from_hits(

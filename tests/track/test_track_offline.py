@@ -319,3 +319,37 @@ def test_image_only_colours_count_where_they_agree_with_the_tracks_fused_ones():
     np.testing.assert_array_equal(_descriptors(frames, hits), [_RED] * 3 + [near_red])
     # a track seen only by the camera keeps all its colours
     assert len(_descriptors(frames, hits[4:])) == 3
+
+
+def _side_by_side(frames: int = 40) -> list[Observations]:
+    """Two people walking along x at 1 m/s, 0.6 m apart, 10 Hz: row 0 the one at y = 0, row 1 at y = 0.6."""
+    return [
+        Observations.create(int(0.1 * k * 1e9), [(0.1 * k, 0.0), (0.1 * k, 0.6)], sigma_m=0.05)
+        for k in range(frames)
+    ]
+
+
+def test_an_overlap_keeps_the_side_on_the_joint_way():
+    """Stitching linked B to A although B began before A ended (``join_chains``). Held-out ``moving`` seed
+    29: B began on the neighbour's second leg and went on with A's person after A ended, and A's tail,
+    on its person all along, was given up for B's head on the neighbour. The side of the overlap that lies
+    on the straight line from A's last kept hit to B's first hit after A's end is kept."""
+    from studio.track.offline import join_chains
+
+    obs = _side_by_side()
+    a = [(k, 0) for k in range(26)]
+    b = [(k, 1) for k in range(15, 23)] + [(k, 0) for k in range(26, 40)]
+    cfg = OfflineConfig()
+    joined = join_chains(obs, {0: a, 1: b}, {0: 0, 1: 0}, {}, cfg)
+    assert joined == {0: [(k, 0) for k in range(40)]}
+    # the rule off: B's head replaces A's tail, as before session 60
+    off = join_chains(obs, {0: a, 1: b}, {0: 0, 1: 0}, {}, OfflineConfig(overlap_margin=0.0))
+    assert off == {0: a[:15] + b}
+    # A's tail went onto the neighbour and B took its person over: B's head stays
+    a2 = [(k, 0) for k in range(15)] + [(k, 1) for k in range(15, 26)]
+    b2 = [(k, 0) for k in range(15, 40)]
+    assert join_chains(obs, {0: a2, 1: b2}, {0: 0, 1: 0}, {}, cfg) == {0: [(k, 0) for k in range(40)]}
+    # two chains stay apart
+    assert join_chains(obs, {0: a, 1: b}, {0: 0, 1: 1}, {}, cfg) == {0: a, 1: b}
+    with pytest.raises(ValueError, match="overlap_margin"):
+        OfflineConfig(overlap_margin=-0.1)
