@@ -118,7 +118,7 @@ class OfflineConfig:
             (over at most ``interpolate_max_gap_s``), metres (0: B's always win, as before session 60).
             Held-out simulated ``moving`` seed 29 (session 60, ``docs/results.md``): a tracklet that began on
             person 3's second leg beside their own track and went on with person 2 took person 2's track
-            over from 1.6 s back, and 1.1 s of person 2 came out on person 3; two switches.
+            over where the two overlapped, and 1.1 s of person 2 came out on person 3; two switches.
     """
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
