@@ -77,7 +77,8 @@ class LabelOptions:
         camera_support_s: on rigs with a camera and ``sources=both``, a track is output at a frame only if
             the camera saw it (as for ``min_camera_hits``) within this many seconds before or after; this
             cuts the stretches where a track left its person and followed laser clutter, s.
-        min_track_s: tracks shorter than this are dropped, s.
+        min_track_s: tracks shorter than this are dropped, s (the thesis baseline's limit; the ``studio``
+            method's tracker already leaves out tracks under ``tracking.min_track_duration_s``, 1.5 s).
         min_walk_m: without the camera (laser-only rigs, ``sources=laser``), a track must somewhere walk this
             far in one stretch of observations (no gap over 0.5 s, positions median-filtered over
             five observations: the diameter of the stretch), else it is dropped as laser clutter: chair and
