@@ -135,6 +135,13 @@ def build_parser() -> argparse.ArgumentParser:
         default="base",
         help="compare positions in the robot's base frame (x, y; default) or the odom frame (x_odom, y_odom)",
     )
+    p.add_argument(
+        "--max-range",
+        type=_positive_float,
+        default=None,
+        help="the ground truth lists people within this many metres of the robot only: people and "
+        "predictions farther away count only where they match (base frame; default: everywhere)",
+    )
     p.add_argument("--json", default=None, help="also write the metrics as JSON to this file")
 
     p = sub.add_parser("view", help="open a run in the Rerun viewer with a blueprint")

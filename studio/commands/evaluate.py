@@ -1,4 +1,5 @@
-"""``studio evaluate PRED GT [--radius M] [--frame base|odom] [--json OUT]``: metrics, JSON (DESIGN §2)."""
+"""``studio evaluate PRED GT [--radius M] [--frame base|odom] [--max-range M] [--json OUT]``: metrics and JSON
+(DESIGN §2)."""
 
 from __future__ import annotations
 
@@ -17,8 +18,10 @@ def run(args: argparse.Namespace) -> int:
     radius = float(args.radius)
     if not radius > 0:
         raise StudioError(f"--radius must be a positive number of metres, got {radius}")
+    if args.max_range is not None and args.frame != "base":
+        raise StudioError("--max-range is measured in the base frame: use it without --frame odom")
     out = out_file(args.json, "--json")
-    ev = evaluate(args.pred, args.gt, radius=radius, frame=args.frame)
+    ev = evaluate(args.pred, args.gt, radius=radius, frame=args.frame, max_range=args.max_range)
     where = "" if args.frame == "base" else " (positions in the odom frame)"
     print(f"studio evaluate: {args.pred} vs ground truth {args.gt}{where}")
     print(ev.table())

@@ -26,7 +26,7 @@ from studio.evaluate.detection import Detection, DetectionResult
 from studio.evaluate.hota import HOTA, HOTAResult
 from studio.evaluate.identity import Identity, IdentityResult
 from studio.geometry.se import wrap_angle
-from studio.labels.base import LabelFrame, LabelSet
+from studio.labels.base import LabelFrame, LabelPerson, LabelSet
 from studio.labels.errors import LabelError
 from studio.labels.formats import read_labels
 
@@ -154,6 +154,7 @@ class Evaluation:
         num_pred_frames_unmatched: predicted frames without a ground-truth frame (ignored).
         num_frames_interpolated: ground-truth frames compared with predictions interpolated to their stamp
             (between two predicted frames; :func:`~studio.evaluate.align.align_frames`).
+        max_range: the annotated range, metres from the robot (None: everywhere); see :func:`evaluate`.
     """
 
     detection: DetectionResult
@@ -167,6 +168,7 @@ class Evaluation:
     sequences: Mapping[str, Evaluation] = field(default_factory=dict)
     num_pred_frames_unmatched: int = 0
     num_frames_interpolated: int = 0
+    max_range: float | None = None
 
     def metrics(self) -> dict[str, Any]:
         """The flat metric dictionary (NaN for undefined values) without splits and sequences."""
@@ -208,6 +210,7 @@ class Evaluation:
             "num_frames_interpolated": self.num_frames_interpolated,
             "radius": self.radius,
             "frame_matching": self.frame_matching,
+            "max_range": self.max_range,
         }
 
     def to_json(self) -> dict[str, Any]:
@@ -325,6 +328,7 @@ def evaluate(
     stamp_tolerance_ns: int = DEFAULT_STAMP_TOLERANCE_NS,
     static_speed: float = 0.05,
     static_yaw_rate: float = 0.1,
+    max_range: float | None = None,
 ) -> Evaluation:
     """Compare predicted labels with ground truth.
 
@@ -337,6 +341,11 @@ def evaluate(
             every person of both files must then have).
         stamp_tolerance_ns: largest stamp difference when aligning frames by stamp, ns.
         static_speed, static_yaw_rate: robot motion thresholds of the static / moving split (m/s, rad/s).
+        max_range: the ground truth lists the people within this many metres of the robot only (an
+            annotator's or a simulator's limit; None: everyone, wherever). Ground-truth people farther away
+            and the predictions within ``radius`` of them are left out, and so are predictions farther away
+            that lie within ``radius`` of nobody listed: a right label beyond the annotated range is no false
+            positive, a person just beyond it no miss. Ranges are measured in the base frame (``x``, ``y``).
 
     Raises:
         LabelError: a file is missing or malformed, or the two share no frame.
@@ -345,6 +354,7 @@ def evaluate(
         {"0": (pred, gt)},
         radius=radius,
         frame=frame,
+        max_range=max_range,
         stamp_tolerance_ns=stamp_tolerance_ns,
         static_speed=static_speed,
         static_yaw_rate=static_yaw_rate,
@@ -359,14 +369,20 @@ def evaluate_sequences(
     stamp_tolerance_ns: int = DEFAULT_STAMP_TOLERANCE_NS,
     static_speed: float = 0.05,
     static_yaw_rate: float = 0.1,
+    max_range: float | None = None,
 ) -> Evaluation:
     """Evaluate several ``(pred, gt)`` sequences: overall metrics plus one :class:`Evaluation` each.
 
     Identities are per sequence (id 3 of one sequence is not id 3 of another); overall counts equal the
     sums of the per-sequence counts (motmetrics ``compute_overall`` / TrackEval ``combine_sequences``).
+    ``max_range``: see :func:`evaluate`.
     """
     if not radius > 0:
         raise ValueError(f"radius must be positive, got {radius}")
+    if max_range is not None and not max_range > 0:
+        raise ValueError(f"max_range must be positive, got {max_range}")
+    if max_range is not None and frame != "base":
+        raise ValueError("max_range is measured in the base frame: use it with frame='base'")
     named = dict(pairs) if isinstance(pairs, Mapping) else {str(k): p for k, p in enumerate(pairs)}
     if not named:
         raise ValueError("no sequence to evaluate")
@@ -388,16 +404,39 @@ def evaluate_sequences(
         one = _Run(radius)
         for gf, pf in al.pairs:
             moving = None if pf is None else motion.get(pf.frame)
+            if max_range is not None:
+                gf, pf = _within_range(gf, pf, max_range, radius)
             overall.add(name, gf, pf, moving)
             if len(loaded) > 1:
                 one.add(name, gf, pf, moving)
         if len(loaded) > 1:
             per_seq[name] = one.result(al.mode, al.num_pred_unmatched, al.num_interpolated)
     mode = modes.pop() if len(modes) == 1 else "mixed"
-    ev = overall.result(mode, unmatched, made)
+    ev = replace(overall.result(mode, unmatched, made), max_range=max_range)
     if per_seq:
-        ev = replace(ev, sequences=per_seq)
+        ev = replace(ev, sequences={k: replace(v, max_range=max_range) for k, v in per_seq.items()})
     return ev
+
+
+def _within_range(
+    gf: LabelFrame, pf: LabelFrame | None, max_range: float, radius: float
+) -> tuple[LabelFrame, LabelFrame | None]:
+    """The frames with what lies outside the annotated range left out (:func:`evaluate`'s ``max_range``)."""
+
+    def far(p: LabelPerson) -> bool:
+        return math.hypot(p.x, p.y) > max_range
+
+    listed = [p for p in gf.people if not far(p)]
+    unlisted = [p for p in gf.people if far(p)]
+    if pf is not None:
+
+        def near(p: LabelPerson, people: list[LabelPerson]) -> bool:
+            return any(math.hypot(p.x - q.x, p.y - q.y) <= radius for q in people)
+
+        # one that may match someone listed stays; else one inside the range, unless someone unlisted is there
+        kept = [p for p in pf.people if near(p, listed) or not (far(p) or near(p, unlisted))]
+        pf = replace(pf, people=tuple(kept))
+    return replace(gf, people=tuple(listed)), pf
 
 
 class _Run:
@@ -470,7 +509,8 @@ def _table(ev: Evaluation) -> str:
     d, c, i, h = ev.detection, ev.clear, ev.identity, ev.hota
     lines = [
         f"{c.num_frames} frames (matched by {ev.frame_matching}), radius {ev.radius:g} m, "
-        f"{c.num_gt_tracks} ground-truth tracks, {c.num_pred_tracks} predicted tracks",
+        + ("" if ev.max_range is None else f"within {ev.max_range:g} m of the robot, ")
+        + f"{c.num_gt_tracks} ground-truth tracks, {c.num_pred_tracks} predicted tracks",
         "",
         f"  Detection   precision {_f(d.precision)}   recall {_f(d.recall)}   F1 {_f(d.f1)}"
         f"   (TP {d.tp}, FP {d.fp}, FN {d.fn})",
