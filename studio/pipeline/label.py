@@ -390,11 +390,14 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     return out
 
 
-def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma: float) -> Any:
-    """The frame's observations in the tracking frame; each leg pair's two legs follow as alternative
-    rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their ``det_index`` after the observations'."""
+def _to_odom(fr: FrameResult, pf: PerceptionFrame | None, leg_sigma: float) -> Any:
+    """The frame's observations in the tracking frame, with what the scanners saw (``pf``'s
+    :meth:`~studio.pipeline.perceive.PerceptionFrame.scan_view`); each leg pair's two legs follow as
+    alternative rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their ``det_index`` after the
+    observations' (without ``pf``: no colours, no view)."""
     from studio.track.base import Observations
 
+    appearance = None if pf is None else pf.appearance
     obs = fr.observations
     n = len(obs)
     legs = np.full((n, 2, 2), np.nan)
@@ -422,7 +425,16 @@ def _to_odom(fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma:
     if fr.obs_dt is not None and len(fr.obs_dt) == n:
         dt = np.r_[fr.obs_dt, np.repeat(fr.obs_dt[pairs], 2)]
     return Observations(
-        fr.stamp_ns, xy, cov, source, score, app, np.arange(len(xy)), alt if len(pairs) else None, dt
+        fr.stamp_ns,
+        xy,
+        cov,
+        source,
+        score,
+        app,
+        np.arange(len(xy)),
+        alt if len(pairs) else None,
+        dt,
+        None if pf is None else pf.scan_view(),
     )
 
 
@@ -526,11 +538,11 @@ def track_all(
     run_tracker = tracker or track_offline
     config = tracking_config(options, has_camera=has_camera)
     sigma = options.fusion.leg_sigma
-    observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
+    observations = [_to_odom(fr, pf, sigma) for fr, pf in zip(fused, frames, strict=True)]
     result = run_tracker(observations, config=config)
     if options.recover_radius > 0 and options.sources != "camera":
         fused = recover_missed(fused, result, options)
-        observations = [_to_odom(fr, pf.appearance, sigma) for fr, pf in zip(fused, frames, strict=True)]
+        observations = [_to_odom(fr, pf, sigma) for fr, pf in zip(fused, frames, strict=True)]
         result = run_tracker(observations, config=config)
     # camera confirmation and minimum duration, per track
     camera_hits: dict[int, list[int]] = {}

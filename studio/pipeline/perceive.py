@@ -24,6 +24,7 @@ from studio.detect.laser.base import LaserDetections, merge_detections
 from studio.errors import StudioError
 from studio.geometry.se import Pose2, Pose3
 from studio.pipeline.base import LabelOptions
+from studio.track.sight import ScanView, scan_view
 
 __all__ = [
     "NoLaserDetector",
@@ -125,6 +126,8 @@ class PerceptionFrame:
     open_owner: NDArray[np.int16] = field(default_factory=lambda: np.zeros(0, np.int16))
     # (S, 2) per scanner: its j-th point measured a + b·j seconds after the frame stamp (:func:`point_times`)
     beam_clocks: FloatArray | None = None
+    # what the scanners saw, in the world frame, kept when the beams go (:meth:`scan_view`)
+    view: ScanView | None = None
 
     @property
     def origin_of_point(self) -> NDArray[np.intp]:
@@ -138,9 +141,19 @@ class PerceptionFrame:
         return abc[:, 0] + abc[:, 1] * xy[:, 0] + abc[:, 2] * xy[:, 1]
 
     def without_beams(self) -> PerceptionFrame:
-        """This frame without its beams (what tracking needs: pass one keeps them until fusion)."""
+        """This frame without its beams (what tracking needs: pass one keeps them until fusion), their
+        :meth:`scan_view` kept."""
         n = len(self.scan_sizes)
-        return replace(self, points=np.zeros((0, 2), np.float32), scan_sizes=np.zeros(n, np.int32))
+        return replace(
+            self, points=np.zeros((0, 2), np.float32), scan_sizes=np.zeros(n, np.int32), view=self.scan_view()
+        )
+
+    def scan_view(self) -> ScanView | None:
+        """What the scanners saw in this frame, in the world frame (:mod:`studio.track.sight`): from the
+        beams while the frame has them, else as kept when they went; None without scans."""
+        if not self.scan_sizes.sum():
+            return self.view
+        return scan_view((np.vstack([pts, ends]), origin) for pts, origin, ends, _, _ in odom_scans(self))
 
     @property
     def world_pose(self) -> Pose2:

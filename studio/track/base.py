@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from studio.geometry.se import Pose2
+from studio.track.sight import ScanView
 
 __all__ = [
     "OBSERVATION_SOURCES",
@@ -68,6 +69,8 @@ class Observations:
         dt_s: (N,) float64 or None: when each observation was measured, seconds after ``stamp_ns`` (a scan
             taken before or after the frame, a beam late in a scanner's sweep); the online association and
             the offline smoother take a person's motion over it into account. None: all at ``stamp_ns``.
+        view: what the scanners saw in this frame (:class:`~studio.track.sight.ScanView`, tracking frame), or
+            None: the offline tracker does not bridge a gap by a walk through places seen empty.
     """
 
     stamp_ns: int
@@ -79,6 +82,7 @@ class Observations:
     det_index: NDArray[np.int64]
     alt_of: NDArray[np.int64] | None = None
     dt_s: FloatArray | None = None
+    view: ScanView | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.stamp_ns, bool) or not isinstance(self.stamp_ns, int | np.integer):
@@ -138,10 +142,11 @@ class Observations:
 
     def transformed(self, pose: Pose2) -> Observations:
         """The same observations in another frame: ``pose`` is ``T_new_old`` (e.g. the robot's odom pose
-        at this frame to go from the robot frame to the odom frame); covariances are rotated too."""
+        at this frame to go from the robot frame to the odom frame); covariances are rotated too, and the
+        scanners' view is left behind (its bins of bearing belong to the old frame)."""
         c, s = np.cos(pose.yaw), np.sin(pose.yaw)
         R = np.array([[c, -s], [s, c]])
-        return replace(self, xy=pose.apply(self.xy), cov=R @ self.cov @ R.T)
+        return replace(self, xy=pose.apply(self.xy), cov=R @ self.cov @ R.T, view=None)
 
     @staticmethod
     def empty(stamp_ns: int) -> Observations:

@@ -55,6 +55,7 @@ from studio.track.duplicates import DuplicateConfig, merge_duplicates
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.excursions import ExcursionConfig, detach_excursions
 from studio.track.fill import GapFillConfig, fill_gaps
+from studio.track.sight import Sight
 from studio.track.smooth import FilterRun, filter_track, rts_smooth
 from studio.track.stitch import StitchConfig, Tracklet, chain_links, link_cuts, stitch_links
 from studio.track.swaps import SwapConfig, repair_swaps
@@ -390,9 +391,10 @@ def track_offline(
     cuts: dict[int, int] = {}
     if cfg.stitch is not None and len(tracklets) > 1:
         summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
-        links = stitch_links(summaries, config=cfg.stitch, cut=colour_cut_pairs)
+        sight = Sight([o.stamp_ns for o in obs], [o.view for o in obs])
+        links = stitch_links(summaries, config=cfg.stitch, cut=colour_cut_pairs, sight=sight)
         root = chain_links(list(tracklets), links)
-        cuts = link_cuts(summaries, links, config=cfg.stitch)
+        cuts = link_cuts(summaries, links, config=cfg.stitch, sight=sight)
     else:
         root = {tid: tid for tid in tracklets}
     merged = join_chains(obs, tracklets, root, cuts, cfg)

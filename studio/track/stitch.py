@@ -11,7 +11,10 @@ A tracklet A that ends at ``t1`` may continue as a tracklet B that starts at ``t
 * appearance agrees (when both carry a descriptor): colour difference
   (:func:`studio.track.appearance.appearance_distance`) ``<= max_appearance``.
 
-Its cost is ``e / gate + appearance_weight · d_app / max_appearance``.
+Its cost is ``e / gate + appearance_weight · d_app / max_appearance``. Where the frames carry what the
+scanners saw (:mod:`studio.track.sight`), a motion link is refused when the walk it assumes — leaving A's end
+at A's velocity, reaching B's start at B's — crossed places the scanners saw empty for ``seen_empty_s`` or
+longer: whoever A was did not walk that way, so B is someone else.
 
 Longer gaps, up to ``reid_max_gap_s`` (someone who left the sensors' view and came back), cannot be
 bridged by motion; such a pair is allowed by **appearance alone**: both tracklets are described by at
@@ -53,6 +56,7 @@ from numpy.typing import NDArray
 
 from studio.track.appearance import appearance_distance
 from studio.track.gnn import gnn_assign
+from studio.track.sight import Sight
 
 __all__ = ["StitchConfig", "Tracklet", "chain_links", "link_cuts", "stitch_links"]
 
@@ -182,6 +186,12 @@ class StitchConfig:
             where the earlier one ended (m, m/s).
         lost_cost: cost of such a link at distance 0 (it rises by 0.5 at the limit; ``2 · miss_cost`` is
             the most any link may cost).
+        seen_empty_s: a motion link is refused when the walk it assumes crossed places the scanners saw
+            empty (:mod:`studio.track.sight`) for at least this long, seconds (0: never; no effect without a
+            ``sight``). Session 62 (``docs/results.md``): of the motion-link candidates (gaps of 0.5–3 s) on
+            laser-only replays of simulated ``moving`` seeds 1–12 and 51–62, 0.5 s refuses none of 441 that
+            join one person and 37 of 121 that join two; laser-only 107 → 104 identity switches, with the
+            camera (seeds 1–70) 55 → 54, F1 up on both.
 
     The ``lost_*`` defaults (session 22, ``docs/results.md``): laser-only replays of the simulated
     ``moving`` seeds 1–8 from 93 to 72 identity switches, seeds 9–12 from 52 to 40, F1 unchanged; with the
@@ -213,6 +223,7 @@ class StitchConfig:
     lost_speed: float = 0.25
     lost_cost: float = 2.0
     tail_back_s: float = 0.5
+    seen_empty_s: float = 0.5
 
     def __post_init__(self) -> None:
         if min(self.max_gap_s, self.max_appearance, self.reid_max_appearance, self.few_max_appearance) <= 0:
@@ -227,24 +238,27 @@ class StitchConfig:
                 self.lost_distance,
                 self.lost_speed,
                 self.few_views,
+                self.seen_empty_s,
             )
             < 0
         ):
             raise ValueError(
-                "reid_max_gap_s, reid_cost_per_min, few_views, and the lost_* gap, distance and speed must "
-                "not be negative"
+                "reid_max_gap_s, reid_cost_per_min, few_views, seen_empty_s, and the lost_* gap, distance "
+                "and speed must not be negative"
             )
 
 
-def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
-    link = _link(a, b, cfg)
+def _pair_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None = None) -> float | None:
+    link = _link(a, b, cfg, sight)
     return None if link is None else link[0]
 
 
-def _link(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> tuple[float, int | None] | None:
+def _link(
+    a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None = None
+) -> tuple[float, int | None] | None:
     """The cost of B continuing A, and the stamp of A's last observation kept when B continues it from an
     earlier one than its last before B starts (else None); None when B may not continue A."""
-    c = _plain_cost(a, b, cfg)
+    c = _plain_cost(a, b, cfg, sight)
     best: tuple[float, int | None] | None = None if c is None else (c, None)
     gap = (b.start_ns - a.end_ns) * 1e-9
     if cfg.tail_back_s <= 0 or b.start_ns <= a.start_ns or not -cfg.max_overlap_s <= gap <= cfg.max_gap_s:
@@ -256,13 +270,13 @@ def _link(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> tuple[float, int | Non
         head = head.cut_before(head.end_ns)
         if head is None or (b.start_ns - head.end_ns) * 1e-9 > cfg.tail_back_s:
             break
-        ch = _plain_cost(head, b, cfg)
+        ch = _plain_cost(head, b, cfg, sight)
         if ch is not None and (best is None or ch + cfg.overlap_cost < best[0]):
             best = (ch + cfg.overlap_cost, head.end_ns)
     return best
 
 
-def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
+def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None = None) -> float | None:
     gap = (b.start_ns - a.end_ns) * 1e-9
     if gap <= 0.0:
         if -gap > cfg.max_overlap_s or b.start_ns <= a.start_ns:
@@ -270,7 +284,7 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
         head = a.cut_before(b.start_ns)
         if head is None:
             return None
-        c = _plain_cost(head, b, cfg)
+        c = _plain_cost(head, b, cfg, sight)
         return None if c is None else c + cfg.overlap_cost
     if gap > cfg.max_gap_s:
         return _reid_cost(a, b, gap, cfg)
@@ -282,6 +296,12 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> float | None:
     gate = cfg.n_sigma * np.sqrt(var) + cfg.max_accel_speed * gap
     if e > gate or np.hypot(*(pb - pa)) > cfg.n_sigma * np.sqrt(var_pos) + cfg.max_speed * gap:
         return None
+    if (
+        sight
+        and 0 < cfg.seen_empty_s <= gap
+        and sight.clear_seconds(pa, a.end_ns, pb, b.start_ns, va, vb) >= cfg.seen_empty_s
+    ):
+        return None  # the scanners saw the way between them empty: nobody walked it
     cost = e / gate
     if _described(a, cfg) and _described(b, cfg):
         d = appearance_distance(a.app_end, b.app_start)  # type: ignore[arg-type]
@@ -349,6 +369,7 @@ def stitch_links(
     *,
     config: StitchConfig | None = None,
     cut: Collection[tuple[int, int]] = (),
+    sight: Sight | None = None,
 ) -> list[tuple[int, int]]:
     """Decide which tracklet continues which.
 
@@ -361,6 +382,8 @@ def stitch_links(
             ``max_appearance`` would join two people again whom the cut separated (one walked out of view as
             the other walked in at that spot: the joint is as smooth as a path gets; simulated ``moving``
             seeds 1–20 of version 6, four such links, joint colours 17–25 ΔE apart, all wrong).
+        sight: what the scanners saw in each frame; with it a motion link is refused where a straight walk
+            from A's end to B's start crossed places they saw empty for ``seen_empty_s`` or longer.
 
     Returns:
         ``(id_a, id_b)`` links: B continues A. Every id is at most once an ``id_a`` and once an ``id_b``.
@@ -377,7 +400,7 @@ def stitch_links(
 
     described = [t for t in tracklets if _described(t, cfg)]
     # Pass 1: the tracklets the camera described, with motion and colours (and re-identification).
-    first = _assign(described, described, cfg, may_rejoin)
+    first = _assign(described, described, cfg, may_rejoin, sight)
     # Pass 2: the others (laser clutter, someone out of view) attach by motion to what pass 1 built; two
     # described chains that pass 1 left apart are not joined.
     nxt = {a: b for a, b, _ in first}
@@ -390,12 +413,17 @@ def stitch_links(
         heads,
         cfg,
         lambda a, b: not (a.track_id in desc_ids and b.track_id in desc_ids) and may_rejoin(a, b),
+        sight,
     )
-    return _fill_gaps(tracklets, _unjoin(first, second, desc_ids), desc_ids, cfg)
+    return _fill_gaps(tracklets, _unjoin(first, second, desc_ids), desc_ids, cfg, sight)
 
 
 def _assign(
-    ends: list[Tracklet], starts: list[Tracklet], cfg: StitchConfig, ok: Callable[[Tracklet, Tracklet], bool]
+    ends: list[Tracklet],
+    starts: list[Tracklet],
+    cfg: StitchConfig,
+    ok: Callable[[Tracklet, Tracklet], bool],
+    sight: Sight | None,
 ) -> list[tuple[int, int, float]]:
     """One-to-one links from ``ends`` to ``starts`` minimising the total cost: ``(id_a, id_b, cost)``."""
     cost = np.zeros((len(ends), len(starts)))
@@ -403,7 +431,7 @@ def _assign(
     for i, a in enumerate(ends):
         for j, b in enumerate(starts):
             if a.track_id != b.track_id and ok(a, b):
-                c = _pair_cost(a, b, cfg)
+                c = _pair_cost(a, b, cfg, sight)
                 if c is not None:
                     cost[i, j], allowed[i, j] = c, True
     if cfg.reid_cost_per_min > 0:
@@ -458,7 +486,11 @@ def _unjoin(
 
 
 def _fill_gaps(
-    tracklets: list[Tracklet], links: list[tuple[int, int]], described: set[int], cfg: StitchConfig
+    tracklets: list[Tracklet],
+    links: list[tuple[int, int]],
+    described: set[int],
+    cfg: StitchConfig,
+    sight: Sight | None,
 ) -> list[tuple[int, int]]:
     """Put chains of pieces that nothing continues into the gap of a re-identification.
 
@@ -519,7 +551,7 @@ def _fill_gaps(
         d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
         if gap <= 0.0 or d > cfg.fill_distance + cfg.max_speed * gap:
             return None
-        motion = gap <= cfg.max_gap_s and _plain_cost(a, b, cfg) is not None
+        motion = gap <= cfg.max_gap_s and _plain_cost(a, b, cfg, sight) is not None
         return -int(motion), d, d <= cfg.fill_distance + cfg.fill_speed * gap
 
     # the gaps of re-identifications: host (a, c) -> the tracklet its chain reaches so far
@@ -556,7 +588,11 @@ def _fill_gaps(
 
 
 def link_cuts(
-    tracklets: list[Tracklet], links: list[tuple[int, int]], *, config: StitchConfig | None = None
+    tracklets: list[Tracklet],
+    links: list[tuple[int, int]],
+    *,
+    config: StitchConfig | None = None,
+    sight: Sight | None = None,
 ) -> dict[int, int]:
     """For the links of :func:`stitch_links` in which B continues A from an observation before A's last one
     before B starts (``tail_back_s``): B's id → the stamp of A's last observation to keep, ns."""
@@ -564,7 +600,7 @@ def link_cuts(
     by_id = {t.track_id: t for t in tracklets}
     out = {}
     for a, b in links:
-        link = _link(by_id[a], by_id[b], cfg)
+        link = _link(by_id[a], by_id[b], cfg, sight)
         if link is not None and link[1] is not None:
             out[b] = link[1]
     return out
