@@ -26,15 +26,18 @@ returns one lost person could make, the sooner is the likelier: each re-identifi
 
 Without colours on both sides (a laser-only rig, someone the camera did not describe), a long gap, up to
 ``lost_max_gap_s``, is still bridged when both tracklets are long (``lost_min_duration_s``: a person, not
-clutter) and the later one starts near where the earlier one was lost (within
-``lost_distance + lost_speed · gap``): most people who vanish from a robot's sensors for a few seconds are
-hidden, not gone. With colours on both sides that differ too much for a re-identification, the same
-position rule still joins them (whatever their durations) when the colours next to the joint (``app_end``,
-``app_start``) differ by at most ``max_appearance``: a tracklet's colours as a whole are spoiled by a
-stretch on a neighbour, and a few views of someone far away are noisy. The cost of such a link,
-``lost_cost`` plus up to 0.5 for the distance, is above any colour or motion link, so it only takes what
-nothing better wants. A wrong guess costs little: without it the person comes back
-under a new id, which the evaluator counts as a switch as well.
+clutter) and the later one starts near where the earlier one was lost (within ``lost_distance + lost_speed ·
+gap``): most people who vanish from a robot's sensors for a few seconds are hidden, not gone. With colours on
+both sides that differ too much for a re-identification, the same position rule still joins them (whatever
+their durations) when the colours next to the joint (``app_end``, ``app_start``) differ by at most
+``max_appearance``: a tracklet's colours as a whole are spoiled by a stretch on a neighbour, and a few views
+of someone far away are noisy. Where the frames carry what the scanners saw, a tracklet may also continue one
+lost longer ago than a motion bridge reaches when the walk between them (the one that leaves A's end at A's
+velocity and reaches B's start at B's) runs within ``hidden_max_error`` of what both velocities predict and
+the scanners never saw any of its way empty: someone who walked on, hidden. The cost of such links,
+``lost_cost`` plus up to 0.5 for the distance (or the walk's error), is above any colour or motion link, so
+they only take what nothing better wants. A wrong guess costs little: without it the person comes back under a
+new id, which the evaluator counts as a switch as well.
 
 Ends are matched to starts one-to-one by the Hungarian algorithm with a cost for leaving an end or a start
 unlinked, and chains (A → B → C) follow. Tracklets without usable colours (``min_views``) attach by motion
@@ -192,6 +195,16 @@ class StitchConfig:
             laser-only replays of simulated ``moving`` seeds 1–12 and 51–62, 0.5 s refuses none of 441 that
             join one person and 37 of 121 that join two; laser-only 107 → 104 identity switches, with the
             camera (seeds 1–70) 55 → 54, F1 up on both.
+        hidden_min_duration_s, hidden_max_error: without colours on both sides, B continues A across a
+            gap of ``max_gap_s`` to ``lost_max_gap_s`` when both span at least ``hidden_min_duration_s``,
+            the mean of the distances between A's end predicted to B's start and B's start predicted back to
+            A's end is at most ``hidden_max_error`` (m), and the scanners never saw the walk between them
+            (as for ``seen_empty_s``) empty: someone who walked on unseen, behind someone or something,
+            though further than "found again where lost" reaches. 0: never; no effect without a ``sight``.
+            Session 62 (``docs/results.md``): laser-only replays of simulated ``moving`` seeds 51–62 49 → 44
+            identity switches, seeds 1–12 55 → 55, F1 up on both; with the camera, seeds 1–70 54 → 57, so
+            the labelling pipeline sets it to 0 on rigs with a camera
+            (:func:`studio.pipeline.label.tracking_config`).
 
     The ``lost_*`` defaults (session 22, ``docs/results.md``): laser-only replays of the simulated
     ``moving`` seeds 1–8 from 93 to 72 identity switches, seeds 9–12 from 52 to 40, F1 unchanged; with the
@@ -224,6 +237,8 @@ class StitchConfig:
     lost_cost: float = 2.0
     tail_back_s: float = 0.5
     seen_empty_s: float = 0.5
+    hidden_min_duration_s: float = 0.5
+    hidden_max_error: float = 1.5
 
     def __post_init__(self) -> None:
         if min(self.max_gap_s, self.max_appearance, self.reid_max_appearance, self.few_max_appearance) <= 0:
@@ -239,12 +254,14 @@ class StitchConfig:
                 self.lost_speed,
                 self.few_views,
                 self.seen_empty_s,
+                self.hidden_min_duration_s,
+                self.hidden_max_error,
             )
             < 0
         ):
             raise ValueError(
-                "reid_max_gap_s, reid_cost_per_min, few_views, seen_empty_s, and the lost_* gap, distance "
-                "and speed must not be negative"
+                "reid_max_gap_s, reid_cost_per_min, few_views, seen_empty_s, the hidden_* options, and the "
+                "lost_* gap, distance and speed must not be negative"
             )
 
 
@@ -287,7 +304,7 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None
         c = _plain_cost(head, b, cfg, sight)
         return None if c is None else c + cfg.overlap_cost
     if gap > cfg.max_gap_s:
-        return _reid_cost(a, b, gap, cfg)
+        return _reid_cost(a, b, gap, cfg, sight)
     pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
     e = 0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap))))
     lam = lambda M: float(np.linalg.eigvalsh(M)[-1])  # noqa: E731 - largest eigenvalue
@@ -331,9 +348,9 @@ def _described(t: Tracklet, cfg: StitchConfig) -> bool:
     return has and t.n_app >= cfg.min_views
 
 
-def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float | None:
+def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig, sight: Sight | None) -> float | None:
     if not (_described(a, cfg) and _described(b, cfg)):
-        return _lost_cost(a, b, gap, cfg)
+        return _lost_cost(a, b, gap, cfg, sight)
     if gap > cfg.reid_max_gap_s:
         return None
     if np.hypot(*(b.x_start[:2] - a.x_end[:2])) > cfg.max_speed * gap + 1.0:
@@ -346,22 +363,38 @@ def _reid_cost(a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig) -> float
     # seen at the joint agreeing as a motion link asks, is still found again (the camera saw a person on
     # both sides, so no clutter guard on the durations)
     if appearance_distance(a.app_end, b.app_start) <= cfg.max_appearance:  # type: ignore[arg-type]
-        return _lost_cost(a, b, gap, cfg, min_duration_s=0.0)
+        return _lost_cost(a, b, gap, cfg, sight, min_duration_s=0.0)
     return None
 
 
 def _lost_cost(
-    a: Tracklet, b: Tracklet, gap: float, cfg: StitchConfig, *, min_duration_s: float | None = None
+    a: Tracklet,
+    b: Tracklet,
+    gap: float,
+    cfg: StitchConfig,
+    sight: Sight | None,
+    *,
+    min_duration_s: float | None = None,
 ) -> float | None:
-    """Cost of B continuing A across a long gap by where A was lost, or None: both tracklets span
-    ``min_duration_s`` (default ``lost_min_duration_s``)."""
+    """Cost of B continuing A across a long gap by where A was lost (both tracklets span ``min_duration_s``,
+    default ``lost_min_duration_s``), else by a hidden walk (``hidden_*``), or None."""
+    if gap > cfg.lost_max_gap_s:
+        return None
     shortest_s = min(a.end_ns - a.start_ns, b.end_ns - b.start_ns) * 1e-9
     shortest_allowed = cfg.lost_min_duration_s if min_duration_s is None else min_duration_s
-    if gap > cfg.lost_max_gap_s or shortest_s < shortest_allowed:
-        return None
     limit = cfg.lost_distance + cfg.lost_speed * gap
     d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
-    return None if d > limit else cfg.lost_cost + 0.5 * d / limit
+    if shortest_s >= shortest_allowed and d <= limit:
+        return cfg.lost_cost + 0.5 * d / limit
+    # someone who walked on unseen: B starts where A's walk leads (and A ends where B's came from), and the
+    # scanners never saw that walk's way empty
+    if not sight or cfg.hidden_max_error <= 0 or shortest_s < cfg.hidden_min_duration_s:
+        return None
+    pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
+    e = 0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap))))
+    if e > cfg.hidden_max_error or sight.clear_seconds(pa, a.end_ns, pb, b.start_ns, va, vb) > 0:
+        return None
+    return cfg.lost_cost + 0.5 * float(e) / cfg.hidden_max_error
 
 
 def stitch_links(

@@ -79,14 +79,15 @@ def test_someone_seen_for_less_than_1_5_s_gets_no_label(seconds, labelled):
 def test_tracking_windows_follow_the_image_period():
     base = LabelOptions().tracking
     at = {p: tracking_config(LabelOptions(image_period_s=p), has_camera=True) for p in (0.0, 0.2, 0.4)}
-    # with a camera, leg pairs are not split in the encounter re-decision and stitching's take-over looks
-    # back 1 s, whatever the period
+    # with a camera, leg pairs are not split in the encounter re-decision, stitching's take-over looks
+    # back 1 s and makes no hidden walks, whatever the period
     assert at[0.0] == replace(
         base,
         encounters=replace(base.encounters, split_legs=False),
-        stitch=replace(base.stitch, tail_back_s=1.0),
+        stitch=replace(base.stitch, tail_back_s=1.0, hidden_max_error=0.0),
     )
     assert base.stitch.tail_back_s == 0.5
+    assert base.stitch.hidden_max_error > 0
     assert not at[0.2].encounters.split_legs
     assert at[0.2].tracker.confirm_window_s == pytest.approx(0.45)
     assert at[0.4].tracker.confirm_window_s == pytest.approx(0.85)

@@ -144,11 +144,33 @@ def test_a_view_is_left_behind_when_observations_change_frame():
     assert o.transformed(Pose2(1.0, 0.0, 0.5)).view is None
 
 
-def test_negative_seen_empty_s_is_refused():
-    with pytest.raises(ValueError, match="seen_empty_s"):
-        StitchConfig(seen_empty_s=-1.0)
+@pytest.mark.parametrize("field", ["seen_empty_s", "hidden_min_duration_s", "hidden_max_error"])
+def test_negative_sight_options_are_refused(field):
+    with pytest.raises(ValueError, match="must not be negative"):
+        StitchConfig(**{field: -1.0})
 
 
 def test_view_is_compact():
     view = ScanView(np.zeros((2, 2)), np.full((2, 360), np.nan, np.float16))
     assert not view.sees_empty(np.array([2.0, 0.0]))  # nothing known
+
+
+def test_someone_who_walked_on_hidden_is_found_again_where_the_walk_leads():
+    # A walks along +x at 1 m/s and is lost at (0, 0) at t = 10 s; B starts 5 s later at (5, 0), walking
+    # on: too far for "found again where lost" (1 m + 0.25 m/s x 5 s) and both too short for it (1 s)
+    a = tracklet(0, 9.0, 10.0, (-1.0, 0.0), (0.0, 0.0), (1.0, 0.0))
+    b = tracklet(1, 15.0, 16.0, (5.0, 0.0), (6.0, 0.0), (1.0, 0.0))
+    stamps = [round(0.1 * k * S) for k in range(201)]
+    # a scanner at (2.5, -3) behind a wall 1 m around it never sees the way; without the wall it sees it empty
+    walled = Sight(stamps, [scan_view([fan(origin=(2.5, -3.0), wall_m=1.0, fov=(0.0, 180.0))])] * len(stamps))
+    open_ = Sight(stamps, [scan_view([fan(origin=(2.5, -3.0), fov=(0.0, 180.0))])] * len(stamps))
+    assert stitch_links([a, b]) == []
+    assert stitch_links([a, b], sight=walled) == [(0, 1)]
+    assert stitch_links([a, b], sight=open_) == []
+    # 2 m off where A's and B's velocities say the walk leads, it is no such link
+    b_off = tracklet(1, 15.0, 16.0, (5.0, 2.0), (6.0, 2.0), (1.0, 0.0))
+    assert stitch_links([a, b_off], sight=walled) == []
+    # half a second is the shortest tracklet that may make one; hidden_max_error 0 switches it off
+    a_short = tracklet(0, 9.7, 10.0, (-0.3, 0.0), (0.0, 0.0), (1.0, 0.0))
+    assert stitch_links([a_short, b], sight=walled) == []
+    assert stitch_links([a, b], sight=walled, config=StitchConfig(hidden_max_error=0.0)) == []
