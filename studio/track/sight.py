@@ -8,14 +8,14 @@ the person did not walk it (they were hidden somewhere else, and the later track
 Each frame keeps a :class:`ScanView`: for each scanner its position in the tracking frame and, in bins of
 bearing around it (tracking frame), the shortest range a beam measured (a return, or the far end of a beam
 that met nothing within range); a bin no beam fell in is unknown. :class:`Sight` answers, over the frames
-between two stamps, for how long a straight walk between two places crossed places the scanners saw empty
+between two stamps, for how long a walk between two places crossed places the scanners saw empty
 (:meth:`Sight.clear_seconds`): the walk that leaves the first place at its velocity and reaches the second at
 its own (a cubic Hermite curve), so that someone who slows down to stop is looked for where they were, not
 half a metre behind.
 
-A place counts as seen empty in a frame when, from one scanner at least ``min_range`` away, every bin
-across ``half_width`` on either side of it (at least one bin) is known and its shortest beam reached
-``margin`` beyond it: a leg there would have stopped a beam short. Dropouts, the robot's own body and beams
+A place counts as seen empty in a frame when, from one scanner at least ``MIN_RANGE_M`` away, every bin
+across ``HALF_WIDTH_M`` on either side of it (at least one bin) is known and its shortest beam reached
+``MARGIN_M`` beyond it: a leg there would have stopped a beam short. Dropouts, the robot's own body and beams
 past the scanner's range leave a place unseen, never empty.
 """
 
