@@ -36,6 +36,7 @@ from studio.pipeline.perceive import (
     rig_camera,
 )
 from studio.track.appearance import APPEARANCE_DIM
+from studio.track.sight import ScanView
 
 __all__ = ["LabelRun", "PerceptionFrame", "label_recording", "perceive"]
 
@@ -390,14 +391,14 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     return out
 
 
-def _to_odom(fr: FrameResult, pf: PerceptionFrame | None, leg_sigma: float) -> Any:
-    """The frame's observations in the tracking frame, with what the scanners saw (``pf``'s
-    :meth:`~studio.pipeline.perceive.PerceptionFrame.scan_view`); each leg pair's two legs follow as
-    alternative rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their ``det_index`` after the
-    observations' (without ``pf``: no colours, no view)."""
+def _to_odom(
+    fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma: float, view: ScanView | None = None
+) -> Any:
+    """The frame's observations in the tracking frame, with what the scanners saw (``view``); each leg
+    pair's two legs follow as alternative rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their
+    ``det_index`` after the observations'."""
     from studio.track.base import Observations
 
-    appearance = None if pf is None else pf.appearance
     obs = fr.observations
     n = len(obs)
     legs = np.full((n, 2, 2), np.nan)
@@ -434,7 +435,7 @@ def _to_odom(fr: FrameResult, pf: PerceptionFrame | None, leg_sigma: float) -> A
         np.arange(len(xy)),
         alt if len(pairs) else None,
         dt,
-        None if pf is None else pf.scan_view(),
+        view,
     )
 
 
@@ -545,11 +546,16 @@ def track_all(
     run_tracker = tracker or track_offline
     config = tracking_config(options, has_camera=has_camera)
     sigma = options.fusion.leg_sigma
-    observations = [_to_odom(fr, pf, sigma) for fr, pf in zip(fused, frames, strict=True)]
+    views = [pf.scan_view() for pf in frames]  # once: a frame that still has its beams makes it anew
+    observations = [
+        _to_odom(fr, pf.appearance, sigma, v) for fr, pf, v in zip(fused, frames, views, strict=True)
+    ]
     result = run_tracker(observations, config=config)
     if options.recover_radius > 0 and options.sources != "camera":
         fused = recover_missed(fused, result, options)
-        observations = [_to_odom(fr, pf, sigma) for fr, pf in zip(fused, frames, strict=True)]
+        observations = [
+            _to_odom(fr, pf.appearance, sigma, v) for fr, pf, v in zip(fused, frames, views, strict=True)
+        ]
         result = run_tracker(observations, config=config)
     # camera confirmation and minimum duration, per track
     camera_hits: dict[int, list[int]] = {}

@@ -306,7 +306,7 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None
     if gap > cfg.max_gap_s:
         return _reid_cost(a, b, gap, cfg, sight)
     pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
-    e = 0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap))))
+    e = _motion_error(a, b, gap)
     lam = lambda M: float(np.linalg.eigvalsh(M)[-1])  # noqa: E731 - largest eigenvalue
     var_pos = lam(a.P_end[:2, :2]) + lam(b.P_start[:2, :2])
     var = var_pos + 0.5 * gap**2 * (lam(a.P_end[2:, 2:]) + lam(b.P_start[2:, 2:]))
@@ -330,6 +330,13 @@ def _plain_cost(a: Tracklet, b: Tracklet, cfg: StitchConfig, sight: Sight | None
     # Unknown appearance is not a perfect match: a tracklet the camera never saw (laser clutter, or
     # someone out of view) must not win over a continuation whose colours agree.
     return cost + cfg.appearance_weight * cfg.unknown_appearance
+
+
+def _motion_error(a: Tracklet, b: Tracklet, gap: float) -> float:
+    """The mean of the distances between A's end predicted ``gap`` seconds forward and B's start, and B's
+    start predicted back and A's end (constant velocity), m."""
+    pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
+    return float(0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap)))))
 
 
 def _few_against(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> bool:
@@ -390,11 +397,12 @@ def _lost_cost(
     # scanners never saw that walk's way empty
     if not sight or cfg.hidden_max_error <= 0 or shortest_s < cfg.hidden_min_duration_s:
         return None
-    pa, va, pb, vb = a.x_end[:2], a.x_end[2:], b.x_start[:2], b.x_start[2:]
-    e = 0.5 * (np.hypot(*(pb - (pa + va * gap))) + np.hypot(*(pa - (pb - vb * gap))))
-    if e > cfg.hidden_max_error or sight.clear_seconds(pa, a.end_ns, pb, b.start_ns, va, vb) > 0:
+    e = _motion_error(a, b, gap)
+    if e > cfg.hidden_max_error:
         return None
-    return cfg.lost_cost + 0.5 * float(e) / cfg.hidden_max_error
+    if sight.clear_seconds(a.x_end[:2], a.end_ns, b.x_start[:2], b.start_ns, a.x_end[2:], b.x_start[2:]) > 0:
+        return None
+    return cfg.lost_cost + 0.5 * e / cfg.hidden_max_error
 
 
 def stitch_links(
@@ -415,8 +423,9 @@ def stitch_links(
             ``max_appearance`` would join two people again whom the cut separated (one walked out of view as
             the other walked in at that spot: the joint is as smooth as a path gets; simulated ``moving``
             seeds 1–20 of version 6, four such links, joint colours 17–25 ΔE apart, all wrong).
-        sight: what the scanners saw in each frame; with it a motion link is refused where a straight walk
-            from A's end to B's start crossed places they saw empty for ``seen_empty_s`` or longer.
+        sight: what the scanners saw in each frame; with it a motion link is refused where the walk it
+            assumes (leaving A's end at A's velocity, reaching B's start at B's) crossed places they saw
+            empty for ``seen_empty_s`` or longer, and a hidden walk may join tracklets (``hidden_*``).
 
     Returns:
         ``(id_a, id_b)`` links: B continues A. Every id is at most once an ``id_a`` and once an ``id_b``.
