@@ -146,8 +146,10 @@ class FrameResult:
             beams on the person for a laser position (0 for an image-only one), or None (all at the stamp).
         occupied: ``(N,)`` how occupied the static-world map saw each observation's place (the median over
             its laser detection's beams of the cell's occupied fraction, 0 where the cell changed while the
-            scanner stood still); NaN without a laser detection (observations appended later have none), or
-            None (not computed: a camera in use, or no map). The walk gate of laser-only labels uses it.
+            scanner stood still); NaN without a laser detection (a cluster recovered where a track coasted
+            gets the median over its scan points, see ``scan_occupied``), or None (not computed: a camera in
+            use, or no map). The walk gate of laser-only labels uses it.
+        scan_occupied: ``(M,)`` the same share for each of ``scan_points``, or None where ``occupied`` is.
     """
 
     index: int
@@ -160,6 +162,7 @@ class FrameResult:
     colours_hidden: NDArray[np.bool_] | None = None
     obs_dt: NDArray[np.float64] | None = None
     occupied: NDArray[np.float64] | None = None
+    scan_occupied: NDArray[np.float16] | None = None
 
     @property
     def world_pose(self) -> Pose2:

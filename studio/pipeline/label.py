@@ -195,12 +195,14 @@ def fuse_all(
             laser = laser.select(np.flatnonzero(keep))
             laser_z = laser_z[keep]
             ds = np.zeros(len(laser_z), bool)
-        pts, rays = None, None
+        pts, rays, pts_occ = None, None, None
         if options.sources != "camera" and len(f.points):
             hit = np.isfinite(f.points[:, 0])
             kept = np.flatnonzero(hit & ~ps)
             pts = np.c_[f.points[kept], f.points_z(kept)]
             rays = ScanRays(f.origins[f.origin_of_point[hit]], f.points[hit, :2].astype(np.float64))
+            if laser_only and smap is not None:
+                pts_occ = _place_occupied(f.world_pose.apply(pts[:, :2].astype(np.float64)), smap)
         obs = fuse_frame(
             f.image,
             laser,
@@ -228,6 +230,7 @@ def fuse_all(
             None if camera is None else colours_hidden(obs, camera),
             _measured_at(obs, f),
             _occupied(obs, laser, f, smap) if laser_only and smap is not None else None,
+            None if pts_occ is None else pts_occ.astype(np.float16),
         )
     return [r for r in out if r is not None]
 
@@ -244,9 +247,14 @@ def _occupied(
     for k, li in enumerate(np.asarray(obs.laser_index)):
         if 0 <= li < len(laser.segments) and len(laser.segments[li]):
             pts = f.world_pose.apply(f.points[laser.segments[li], :2].astype(np.float64))
-            occ = np.where(smap.changed_at(pts), 0.0, smap.static_fraction(pts))
-            out[k] = float(np.median(occ))
+            out[k] = float(np.median(_place_occupied(pts, smap)))
     return out
+
+
+def _place_occupied(pts_world: FloatArray, smap: Any) -> FloatArray:
+    """Per point (world frame), its static-map cell's occupied fraction, 0 where the cell changed while the
+    scanner stood still."""
+    return np.where(smap.changed_at(pts_world), 0.0, smap.static_fraction(pts_world))
 
 
 _PERSON_BEAMS_M = 0.35  # a person's beams lie within this of their position (legs apart, a wide coat)
@@ -356,7 +364,7 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     out = []
     for fr, tf in zip(fused, result.frames, strict=True):
         pts = fr.scan_points
-        extra = []
+        extra, extra_occ = [], []
         if pts is not None and len(pts):
             inv = fr.world_pose.inverse()
             taken = fr.observations.xy
@@ -373,6 +381,8 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
                     continue
                 taken = np.vstack([taken, xy[None]])
                 extra.append(xy)
+                if fr.scan_occupied is not None:
+                    extra_occ.append(float(np.median(fr.scan_occupied[near].astype(np.float64))))
         if extra:
             n = len(extra)
             add = PersonObservations(
@@ -386,7 +396,12 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
                 np.full(n, -1),
             )
             dt = None if fr.obs_dt is None else np.r_[fr.obs_dt, np.zeros(n)]
-            fr = replace(fr, observations=PersonObservations.concat([fr.observations, add]), obs_dt=dt)
+            occ = fr.occupied
+            if occ is not None:  # the walk gate judges a recovered cluster as it does a detection
+                occ = np.r_[occ, extra_occ if len(extra_occ) == n else np.full(n, np.nan)]
+            fr = replace(
+                fr, observations=PersonObservations.concat([fr.observations, add]), obs_dt=dt, occupied=occ
+            )
         out.append(fr)
     return out
 

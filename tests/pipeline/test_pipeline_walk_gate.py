@@ -156,3 +156,48 @@ def test_a_leg_of_a_split_pair_is_where_its_pair_was() -> None:
 
     assert taking(0, 0.1) == taking(1, 0.1) == N
     assert taking(0, 0.5) == taking(1, 0.5) == 0
+
+
+def test_a_recovered_cluster_is_judged_by_the_occupied_share_of_its_points() -> None:
+    """Where a track coasted, the scan points at its place become an observation (``recover_missed``); the
+    walk gate judges that place by the static map's occupied share of those points, as it judges a
+    detection (session 63: on leg_tracker's ``negative_2.bag`` at 0.5° beams, clusters recovered along the
+    edge of furniture made a 2 s "walk" of 1.4 m and kept a false track for 40 s)."""
+    from studio.track.base import TrackFrame, TrackPoint, TrackResult
+
+    ring = 0.08 * np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0.0, np.pi, 6)])
+    frames = []
+    for k in range(N):
+        pts = (_walker(k) + ring).astype(np.float32)
+        laser = LaserDetections(np.zeros((0, 2)), np.zeros(0), np.zeros(0, int), np.zeros(0), ())
+        frames.append(
+            PerceptionFrame(
+                k, _stamp(k), Pose2(), None, None, laser, np.zeros(0), np.zeros((1, 2)), pts,
+                np.array([len(pts)], np.int32), np.zeros((1, 3)),
+            )
+        )  # fmt: skip
+    options = replace(LabelOptions(sources="laser"), static_filter=False)
+
+    def tracker(observations: list, config: object = None) -> TrackResult:
+        """Coasts along the walker (first pass), then takes what was recovered there."""
+        return TrackResult(
+            tuple(
+                TrackFrame(o.stamp_ns, (TrackPoint(0, _walker(k), np.eye(2) * 0.01, len(o.xy) - 1),))
+                for k, o in enumerate(observations)
+            )
+        )
+
+    def labelled(share: float) -> int:
+        fused = [
+            replace(fr, occupied=np.zeros(0), scan_occupied=np.full(len(fr.scan_points), share, np.float16))
+            for fr in fuse_all(frames, None, options)
+        ]
+        labels, used = track_all(frames, fused, options, has_camera=False, tracker=tracker)
+        assert all(len(fr.observations) == 1 for fr in used)  # each frame's cluster was recovered
+        for fr in used:
+            assert fr.occupied is not None
+            assert fr.occupied[0] == pytest.approx(share, abs=1e-3)
+        return sum(len(lf.people) for lf in labels)
+
+    assert labelled(0.1) == N
+    assert labelled(0.5) == 0
