@@ -119,7 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="M",
         help="without the camera, keep only tracks that walked M metres somewhere (default 1; 0 also keeps "
-        "whoever stood still the whole recording, and the furniture)",
+        "whoever stood still the whole recording, and the furniture); with it, a track is also output where "
+        "it walked M metres, not only near the camera's detections (0: only there)",
     )
     p.add_argument(
         "--ground-truth", default=None, help="ground truth to log beside the labels (compare view)"

@@ -75,8 +75,10 @@ class LabelOptions:
             person, seen by the camera; without it 22 s of one person went unlabelled on simulated
             ``moving`` seed 20 (session 30, ``docs/results.md``).
         camera_support_s: on rigs with a camera and ``sources=both``, a track is output at a frame only if
-            the camera saw it (as for ``min_camera_hits``) within this many seconds before or after; this
-            cuts the stretches where a track left its person and followed laser clutter, s.
+            the camera saw it (as for ``min_camera_hits``) within this many seconds before or after, or the
+            frame lies in a stretch of its observations in which it walked ``min_walk_m`` (as the walk gate
+            measures it: someone far away whom the image detector no longer boxes, walking in the scans);
+            this cuts the stretches where a track left its person and followed laser clutter, s.
         min_track_s: tracks shorter than this are dropped, s (the thesis baseline's limit; the ``studio``
             method's tracker already leaves out tracks under ``tracking.min_track_duration_s``, 1.5 s).
         min_walk_m: without the camera (laser-only rigs, ``sources=laser``), a track must somewhere walk this
@@ -85,7 +87,9 @@ class LabelOptions:
             table legs a moving robot sees too briefly for the static map to judge stand still, and a track
             that hops between them does so across gaps. Offline, the whole track counts, so someone who
             walked in and then stood is kept throughout; someone who stood still for the whole recording
-            is not (without a camera, nothing tells them from furniture). 0 turns this off, m.
+            is not (without a camera, nothing tells them from furniture). With a camera, the stretches in
+            which a track walked this far count as the camera's support (``camera_support_s``). 0 turns
+            both off, m.
         fusion: association parameters.
         tracking: offline tracking parameters (online UKF pass, stitching, smoothing).
         recover_radius: after a first tracking pass, a track that has no observation in a frame takes the
@@ -147,8 +151,9 @@ class FrameResult:
         occupied: ``(N,)`` how occupied the static-world map saw each observation's place (the median over
             its laser detection's beams of the cell's occupied fraction, 0 where the cell changed while the
             scanner stood still); NaN without a laser detection (a cluster recovered where a track coasted
-            gets the median over its scan points, see ``scan_occupied``), or None (not computed: a camera in
-            use, or no map). The walk gate of laser-only labels uses it.
+            gets the median over its scan points, see ``scan_occupied``), or None (not computed: no map, or
+            ``LabelOptions.min_walk_m`` 0). The walk gate of laser-only labels and, with a camera, the
+            walking stretches that count as the camera's support use it.
         scan_occupied: ``(M,)`` the same share for each of ``scan_points``, or None where ``occupied`` is.
     """
 

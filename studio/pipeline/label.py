@@ -133,6 +133,9 @@ def fuse_all(
 ) -> list[FrameResult]:
     """Static filter + fusion of every frame (base frame); the maps as :func:`_static_masks`."""
     laser_only = camera is None or options.sources == "laser"
+    # how occupied the places of the observations are: for the walk gate (laser only) and, with the
+    # camera, for the walking stretches that count as the camera's support (see track_all)
+    walks = options.min_walk_m > 0
     # camera-only runs use neither laser detections nor scan points: no map to build
     smap = None
     if options.static_filter and options.sources != "camera" and any(len(f.points) for f in frames):
@@ -196,13 +199,19 @@ def fuse_all(
             laser_z = laser_z[keep]
             ds = np.zeros(len(laser_z), bool)
         pts, rays, pts_occ = None, None, None
+        # each scan point's share of occupied looks in the static map (walk gate, walking stretches)
+        share = (
+            _place_occupied(f.world_pose.apply(f.points[:, :2].astype(np.float64)), smap)
+            if walks and smap is not None
+            else None
+        )
         if options.sources != "camera" and len(f.points):
             hit = np.isfinite(f.points[:, 0])
             kept = np.flatnonzero(hit & ~ps)
             pts = np.c_[f.points[kept], f.points_z(kept)]
             rays = ScanRays(f.origins[f.origin_of_point[hit]], f.points[hit, :2].astype(np.float64))
-            if laser_only and smap is not None:
-                pts_occ = _place_occupied(f.world_pose.apply(pts[:, :2].astype(np.float64)), smap)
+            if share is not None:
+                pts_occ = share[kept]
         obs = fuse_frame(
             f.image,
             laser,
@@ -229,32 +238,28 @@ def fuse_all(
             _pair_legs(obs, laser),
             None if camera is None else colours_hidden(obs, camera),
             _measured_at(obs, f),
-            _occupied(obs, laser, f, smap) if laser_only and smap is not None else None,
+            None if share is None else _occupied(obs, laser, share),
             None if pts_occ is None else pts_occ.astype(np.float16),
         )
     return [r for r in out if r is not None]
 
 
-def _occupied(
-    obs: PersonObservations, laser: LaserDetections | None, f: PerceptionFrame, smap: Any
-) -> FloatArray:
+def _occupied(obs: PersonObservations, laser: LaserDetections | None, share: FloatArray) -> FloatArray:
     """Per observation, how occupied the static map saw the place of its laser detection: the median over
-    its beams of the cell's occupied fraction, 0 for a cell that changed while the scanner stood still
-    (``StaticMap.changed_at``); NaN without a laser detection."""
+    its beams of ``share``, each scan point's (:func:`_place_occupied`); NaN without a laser detection."""
     out = np.full(len(obs), np.nan)
     if laser is None or laser.segments is None:
         return out
     for k, li in enumerate(np.asarray(obs.laser_index)):
         if 0 <= li < len(laser.segments) and len(laser.segments[li]):
-            pts = f.world_pose.apply(f.points[laser.segments[li], :2].astype(np.float64))
-            out[k] = float(np.median(_place_occupied(pts, smap)))
+            out[k] = float(np.median(share[laser.segments[li]]))
     return out
 
 
 def _place_occupied(pts_world: FloatArray, smap: Any) -> FloatArray:
     """Per point (world frame), its static-map cell's occupied fraction, 0 where the cell changed while the
     scanner stood still."""
-    return np.where(smap.changed_at(pts_world), 0.0, smap.static_fraction(pts_world))
+    return smap.walk_share(pts_world)
 
 
 _PERSON_BEAMS_M = 0.35  # a person's beams lie within this of their position (legs apart, a wide coat)
@@ -502,23 +507,29 @@ def tracking_config(options: LabelOptions, *, has_camera: bool) -> Any:
 
 
 def longest_walk(observed: list[tuple[int, float, float]]) -> float:
-    """How far a track walked in one stretch: the largest diameter, m, of its observed positions
+    """How far a track walked in one stretch, m: the largest diameter of :func:`walk_stretches`."""
+    return max((d for _, _, d in walk_stretches(observed)), default=0.0)
+
+
+def walk_stretches(observed: list[tuple[int, float, float]]) -> list[tuple[int, int, float]]:
+    """``(first stamp_ns, last stamp_ns, diameter m)`` of each stretch of a track's observed positions
     ``(stamp_ns, x, y)`` (in time order) between gaps longer than ``_WALK_GAP_S``, each stretch's positions
     median-filtered over ``_WALK_MEDIAN`` observations first (a track that jitters or hops between two
-    chair legs in one stretch does not walk); stretches of fewer observations than that count 0."""
+    chair legs in one stretch does not walk); stretches of fewer observations than that are left out."""
     from scipy.ndimage import median_filter
 
     if len(observed) < _WALK_MEDIAN:
-        return 0.0
-    a = np.asarray(observed, dtype=np.float64)
-    cuts = np.flatnonzero(np.diff(a[:, 0]) > _WALK_GAP_S * 1e9) + 1
-    best = 0.0
-    for run in np.split(a[:, 1:], cuts):
+        return []
+    stamps = np.array([o[0] for o in observed], dtype=np.int64)  # exact: float64 rounds epoch ns
+    xy_all = np.array([o[1:] for o in observed], dtype=np.float64)
+    cuts = np.flatnonzero(np.diff(stamps) > _WALK_GAP_S * 1e9) + 1
+    out = []
+    for t, run in zip(np.split(stamps, cuts), np.split(xy_all, cuts), strict=True):
         if len(run) < _WALK_MEDIAN:
             continue
         xy = median_filter(run, size=(_WALK_MEDIAN, 1), mode="nearest")
-        best = max(best, _diameter(xy))
-    return best
+        out.append((int(t[0]), int(t[-1]), _diameter(xy)))
+    return out
 
 
 def _diameter(xy: FloatArray) -> float:
@@ -578,7 +589,9 @@ def track_all(
     sources: dict[int, Counter[str]] = {}
     camera_gate = has_camera and options.sources == "both"
     walk_gate = options.min_walk_m > 0 and (not has_camera or options.sources == "laser")
-    # walk gate: each track's observed positions (not on places seen occupied)
+    # with the camera, a stretch in which a track walked min_walk_m counts as the camera's support there
+    walk_support = camera_gate and options.min_walk_m > 0
+    # walk gate and walking stretches: each track's observed positions (not on places seen occupied)
     observed: dict[int, list[tuple[int, float, float]]] = {}
     by_camera = ("fused", "image")
     for fr_i, (fr, tf) in enumerate(zip(fused, result.frames, strict=True)):
@@ -595,7 +608,7 @@ def track_all(
             if p.det_index >= 0:
                 src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
-                if walk_gate:
+                if walk_gate or walk_support:
                     # a leg of a split pair (a row past the observations) is where its pair was
                     row = (
                         int(ob.alt_of[p.det_index])
@@ -616,6 +629,7 @@ def track_all(
             if camera:
                 camera_hits.setdefault(p.track_id, []).append(fr.stamp_ns)
     keep = set()
+    walking: dict[int, list[tuple[int, int]]] = {}  # with the camera: each kept track's walking stretches
     for tid, stamps in span.items():
         if (max(stamps) - min(stamps)) / 1e9 < options.min_track_s:
             continue
@@ -624,12 +638,18 @@ def track_all(
         if walk_gate and longest_walk(observed.get(tid, [])) < options.min_walk_m:
             continue
         keep.add(tid)
+        if walk_support:
+            walking[tid] = [
+                (a, b) for a, b, d in walk_stretches(observed.get(tid, [])) if d >= options.min_walk_m
+            ]
     support = {tid: np.array(v, dtype=np.int64) for tid, v in camera_hits.items()}
     window_ns = int(options.camera_support_s * 1e9)
 
     def supported(tid: int, stamp: int) -> bool:
         if not camera_gate:
             return True
+        if any(a <= stamp <= b for a, b in walking.get(tid, ())):
+            return True  # the laser saw someone walk here: a person, whom the camera may not box (far away)
         t = support.get(tid)
         if t is None:
             return False

@@ -204,6 +204,15 @@ class StaticMap:
         h, f, _ = self._lookup(points)
         return _fraction(h, f, min_observations)
 
+    def walk_share(self, points: ArrayLike, *, min_observations: int = 5) -> FloatArray:
+        """``(K,)`` :meth:`static_fraction`, 0 where the cell changed while the scanner stood still
+        (:meth:`changed_at`): how much a place looked like furniture, for the walk of a track."""
+        out = np.zeros(len(np.asarray(points, dtype=np.float64).reshape(-1, 2)))
+        sel, ij = self._cells(points)
+        h, f = self.hits[ij[:, 0], ij[:, 1]], self.free[ij[:, 0], ij[:, 1]]
+        out[sel] = np.where(self.changed[ij[:, 0], ij[:, 1]], 0.0, _fraction(h, f, min_observations))
+        return out
+
     def structure(
         self, points: ArrayLike, *, occupied: float = 0.7, min_observations: int = 5
     ) -> NDArray[np.bool_]:
