@@ -201,7 +201,7 @@ def fuse_all(
         pts, rays, pts_occ = None, None, None
         # each scan point's share of occupied looks in the static map (walk gate, walking stretches)
         share = (
-            _place_occupied(f.world_pose.apply(f.points[:, :2].astype(np.float64)), smap)
+            smap.walk_share(f.world_pose.apply(f.points[:, :2].astype(np.float64)))
             if walks and smap is not None
             else None
         )
@@ -246,7 +246,7 @@ def fuse_all(
 
 def _occupied(obs: PersonObservations, laser: LaserDetections | None, share: FloatArray) -> FloatArray:
     """Per observation, how occupied the static map saw the place of its laser detection: the median over
-    its beams of ``share``, each scan point's (:func:`_place_occupied`); NaN without a laser detection."""
+    its beams of ``share``, each scan point's (``StaticMap.walk_share``); NaN without a laser detection."""
     out = np.full(len(obs), np.nan)
     if laser is None or laser.segments is None:
         return out
@@ -254,12 +254,6 @@ def _occupied(obs: PersonObservations, laser: LaserDetections | None, share: Flo
         if 0 <= li < len(laser.segments) and len(laser.segments[li]):
             out[k] = float(np.median(share[laser.segments[li]]))
     return out
-
-
-def _place_occupied(pts_world: FloatArray, smap: Any) -> FloatArray:
-    """Per point (world frame), its static-map cell's occupied fraction, 0 where the cell changed while the
-    scanner stood still."""
-    return smap.walk_share(pts_world)
 
 
 _PERSON_BEAMS_M = 0.35  # a person's beams lie within this of their position (legs apart, a wide coat)

@@ -269,6 +269,12 @@ def test_a_spot_that_changed_while_the_scanner_stood_still():
     assert not smap.changed_at(wall).any()
     assert smap.changed_at(np.array([[np.nan, 0.0], [50.0, 50.0]])).tolist() == [False, False]
     assert not StaticMap.build(((p, o) for p, o, _ in scans), steady_scans=0).changed.any()
+    # the walk's share: the occupied fraction, 0 where the spot changed (the person), 0 off the map
+    share = smap.walk_share(np.r_[pts[person], pts[pillar], [[np.nan, 0.0], [50.0, 50.0]]])
+    assert np.all(share[: len(person)] == 0.0)
+    assert np.all(share[len(person) : -2] == smap.static_fraction(pts[pillar]))
+    assert np.all(share[len(person) : -2] > 0.9)
+    assert share[-2:].tolist() == [0.0, 0.0]
 
 
 Origin = Callable[[int], tuple[float, float]]
