@@ -552,6 +552,17 @@ def _fill_gaps(
     gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the gates
     of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only the one
     who left just before the piece starts continues into it), then where the joints are shortest.
+
+    A chain may also overlap an end of the gap by up to ``max_overlap_s`` (the online pass had two tracks on
+    the person for a moment, or the track after the gap began on someone else and took the person over
+    later): at the gap's start when it may continue that end by motion from before its own start (or the
+    end's last observation lies within ``fill_distance`` of the chain there), at the gap's end when the
+    track after it, at the chain's last observation, lies within ``fill_distance`` of it (or continues it
+    by motion). :func:`~studio.track.offline.join_chains` settles the overlap as for any link that
+    overlaps. Such a joint counts as neither a motion link nor a clean one: a chain goes where its joints
+    do not overlap when it fits such a gap too. Session 65 (``docs/results.md``): held-out ``moving`` seeds
+    43 (a 2.5 s piece 0.1 s into the gap's start) and 56 (a 20 s piece 2.6 s past the gap's end, where
+    the re-identified track began on a passer-by).
     """
     by_id = {t.track_id: t for t in tracklets}
     nxt = dict(links)
@@ -587,11 +598,29 @@ def _fill_gaps(
         return True
 
     def joint(a: Tracklet, b: Tracklet) -> tuple[int, float, bool] | None:
-        """(-1 for a motion link else 0, length, whether it is short) of the joint a → b, or None when it is
-        not walkable."""
+        """(-1 for a motion link, 1 for an overlap, else 0; length; whether it is short) of the joint a → b,
+        or None when it is not walkable. Where b starts before a ends (by up to ``max_overlap_s``), the
+        joint is b's position at a's last observation to a's there, or, where b continues a by motion from
+        a's last observation before b starts, a's position there to b's start; the shorter, at most
+        ``fill_distance``."""
         gap = (b.start_ns - a.end_ns) * 1e-9
+        if gap <= 0.0:
+            if b.start_ns <= a.start_ns or -gap > cfg.max_overlap_s:
+                return None
+            lengths = []
+            if (
+                b.hit_ns is not None
+                and b.x_hit is not None
+                and (k := np.searchsorted(b.hit_ns, a.end_ns)) < len(b.hit_ns)
+            ):
+                lengths.append(float(np.hypot(*(b.x_hit[k, :2] - a.x_end[:2]))))
+            if (head := a.cut_before(b.start_ns)) is not None and _link(a, b, cfg, sight) is not None:
+                lengths.append(float(np.hypot(*(b.x_start[:2] - head.x_end[:2]))))
+            if not lengths or min(lengths) > cfg.fill_distance:
+                return None
+            return 1, min(lengths), True
         d = float(np.hypot(*(b.x_start[:2] - a.x_end[:2])))
-        if gap <= 0.0 or d > cfg.fill_distance + cfg.max_speed * gap:
+        if d > cfg.fill_distance + cfg.max_speed * gap:
             return None
         motion = gap <= cfg.max_gap_s and _plain_cost(a, b, cfg, sight) is not None
         return -int(motion), d, d <= cfg.fill_distance + cfg.fill_speed * gap
@@ -607,7 +636,7 @@ def _fill_gaps(
         best, best_key = None, (1, np.inf)
         for (a, c), cur in hosts.items():
             end = by_id[c]
-            if head.start_ns <= cur.end_ns or tail.end_ns >= end.start_ns:
+            if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
             if not colours_fit(members, by_id[a], end):
                 continue

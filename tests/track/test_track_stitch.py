@@ -357,6 +357,47 @@ def test_a_tracklet_whose_last_observations_were_a_neighbours_is_continued_from_
     assert link_cuts([plain, b], stitch_links([plain, b])) == {}
 
 
+def test_a_piece_that_overlaps_an_end_of_the_gap_goes_into_it():
+    # blue walks along +x and is lost at (8, 0), t = 10 s; a colourless piece of them began 0.1 s before (the
+    # online pass had two tracks on blue for a frame) and walks on to (12, 0), t = 14 s; blue is
+    # re-identified at (12.3, 0) 20 s later
+    ts = np.arange(0.0, 10.01, 0.1)
+    path = np.column_stack([ts - 2.0, 0.0 * ts])
+    a = with_hits(tl(0, 0.0, 10.0, (-2.0, 0.0), (8.0, 0.0), app=BLUE), ts, path)
+    tp = np.arange(9.9, 14.01, 0.1)
+    walk = np.column_stack([tp - 2.0, 0.0 * tp])
+    piece = with_hits(tl(1, 9.9, 14.0, walk[0], walk[-1]), tp, walk)
+    still = (0.0, 0.0)
+    c = tl(2, 34.0, 40.0, (12.3, 0.0), (12.3, 0.0), v=still, app=BLUE)
+    assert stitch_links([a, piece, c]) == [(0, 1), (1, 2)]
+    # a piece that starts elsewhere as blue is lost is someone else's
+    away = with_hits(tl(1, 9.9, 14.0, (7.9, 3.0), (12.0, 3.0)), tp, walk + np.array([0.0, 3.0]))
+    assert stitch_links([a, away, c]) == [(0, 2)]
+    # and one that starts before blue was ever seen is not a piece of blue's gap
+    early = with_hits(tl(1, -1.0, 14.0, (-3.0, 0.0), walk[-1]), np.r_[-1.0, tp], np.r_[[[-3.0, 0.0]], walk])
+    assert (0, 1) not in stitch_links([a, early, c])
+
+
+def test_a_piece_that_runs_past_the_return_goes_into_the_gap_where_the_return_meets_it():
+    # blue stands at (8, 0) and is lost at t = 10 s; a colourless piece of them runs from 14 s to 30 s; the
+    # re-identified track begins at 28 s on a passer-by at (9, 0) and goes on with blue from 29 s: where the
+    # piece ends, the re-identified track is where the piece is
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=still, app=BLUE)
+    tp = np.arange(14.0, 30.01, 0.1)
+    piece = with_hits(
+        tl(1, 14.0, 30.0, (8.0, 0.0), (8.0, 0.0), v=still), tp, np.tile([8.0, 0.0], (len(tp), 1))
+    )
+    tc = np.arange(28.0, 40.01, 0.1)
+    xc = np.column_stack([np.where(tc < 29.0, 9.0, 8.05), 0.0 * tc])
+    c = with_hits(tl(2, 28.0, 40.0, (9.0, 0.0), (8.05, 0.0), v=still, app=BLUE), tc, xc)
+    assert stitch_links([a, piece, c]) == [(0, 1), (1, 2)]
+    # where the re-identified track is elsewhere as the piece ends, the piece stays out
+    far = with_hits(c, tc, xc + np.array([0.0, 2.0]))
+    far = replace(far, x_start=far.x_start + np.array([0.0, 2.0, 0.0, 0.0]))
+    assert stitch_links([a, piece, far]) == [(0, 2)]
+
+
 @pytest.mark.parametrize("field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s", "few_views"])
 def test_negative_stitch_options_are_refused(field):
     with pytest.raises(ValueError, match="must not be"):
