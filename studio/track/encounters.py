@@ -31,7 +31,18 @@ hidden), they take part only when they leave no doubt: the other tail has colour
 to motion, and on ``moving`` seed 14 a person walking past someone who stopped took the stopped one's
 track); the undescribed track's observations then cost half the cap whoever takes them, and so does its
 side of leaving. Letting one side's colours take part always got as many encounters wrong as right
-(session 23).
+(session 23). Where they leave doubt, the undescribed track's tail stands for it: with its colours after
+the encounter as its colours, each described observation inside costs as above, but the tracks leave as
+they came (the tails' colours decide who held what inside, not who leaves as whom); without colours
+after it either, motion alone decides.
+
+An encounter begins where both tracks exist, or where the later one begins: someone who appears beside
+another person (stepping out from behind them, or out of the camera's blind spot) often has the other's
+track take their first detections while their own track begins on the other's. A track that begins in the
+encounter starts the beam search from its smoothed state at its first hit moved back a frame (its way
+through the encounter is known from its later hits), with the forward filter's first covariance. Session
+65 (``docs/results.md``): held-out ``moving`` seed 37 frames 95–105, a newcomer 0.4 m beside someone, three
+switches to none.
 
 Decided together, three or four tracks that come close at once (all ways of giving each frame's
 observations to them, every permutation of their tails) did not do better than pair by pair (session 18,
@@ -136,11 +147,11 @@ def _windows(
     tracks: dict[int, Hits], smoothed: dict[int, FloatArray], cfg: EncounterConfig
 ) -> list[tuple[int, int, int, int]]:
     """``(id_a, id_b, first frame, last frame)`` of every encounter, padded, in time order; both tracks
-    exist from ``first - 1``."""
+    exist before ``first`` or begin there."""
     out = []
     for a, b in itertools.combinations(sorted(tracks), 2):
         fa, fb = tracks[a][0][0], tracks[b][0][0]
-        f0 = max(fa, fb) + 1
+        f0 = max(fa, fb, 1)
         f1 = min(fa + len(smoothed[a]), fb + len(smoothed[b])) - 1
         if f0 > f1:
             continue
@@ -258,7 +269,7 @@ def reassign_encounters(
     changed = 0
     smoothed = {tid: estimate(h)[2] for tid, h in tracks.items()}
     for a, b, f0, f1 in _windows(tracks, smoothed, cfg):
-        if not all(tracks[t][0][0] < f0 <= tracks[t][-1][0] + 1 for t in (a, b)):
+        if not all(tracks[t][0][0] <= f0 <= tracks[t][-1][0] + 1 for t in (a, b)):
             continue  # an earlier re-decision moved a track's start or end past the encounter
         changed += _redecide(obs, tracks, [a, b], f0, f1, estimate, accel_sigma, cfg)
     return tracks, changed
@@ -289,9 +300,9 @@ def _redecide(
     if not held:
         return False
     tails = [{i: r for i, r in span if i > f1} for span in spans]
-    app, before, after = _appearance(obs, hs, spans, f0, last, cfg)
+    app, before, after, exchange = _appearance(obs, hs, spans, f0, last, cfg)
     identity = tuple(range(k))
-    orders = list(itertools.permutations(range(k))) if app else [identity]
+    orders = list(itertools.permutations(range(k))) if app and exchange else [identity]
 
     def tail(order: tuple[int, ...]) -> dict[int, list[_Option]]:
         return {
@@ -313,8 +324,7 @@ def _redecide(
         return cfg.appearance_weight * cfg.appearance_views * cost
 
     states = [estimate(h) for h in hs]
-    x0 = np.stack([x[f0 - 1 - h[0][0]] for (x, _, _), h in zip(states, hs, strict=True)])
-    P0 = np.stack([P[f0 - 1 - h[0][0]] for (_, P, _), h in zip(states, hs, strict=True)])
+    x0, P0 = _start_states(obs, states, hs, f0)
     frames = range(f0, last + 1)
     current = {i: [tuple(v)] for i, v in held.items()}
     every = {i: _options(obs[i], i, v, cfg.split_legs) for i, v in held.items()}
@@ -338,19 +348,46 @@ def _redecide(
     return True
 
 
+def _start_states(
+    obs: Sequence[Observations],
+    states: list[tuple[FloatArray, FloatArray, FloatArray]],
+    hs: list[Hits],
+    f0: int,
+) -> tuple[FloatArray, FloatArray]:
+    """The tracks' states and covariances before frame ``f0``: a track's forward-filtered state there, or,
+    for one that begins at ``f0``, its smoothed state at its first hit moved back a frame with the forward
+    filter's first covariance (its motion through the encounter known from its later hits)."""
+    xs, Ps = [], []
+    for (x, P, smoothed), h in zip(states, hs, strict=True):
+        if h[0][0] < f0:
+            xs.append(x[f0 - 1 - h[0][0]])
+            Ps.append(P[f0 - 1 - h[0][0]])
+        else:
+            F = cv_matrix(-(obs[f0].stamp_ns - obs[f0 - 1].stamp_ns) * 1e-9)
+            xs.append(F @ smoothed[0])
+            Ps.append(P[0])
+    return np.stack(xs), np.stack(Ps)
+
+
 def _appearance(
     obs: Sequence[Observations], hs: list[Hits], spans: list[Hits], f0: int, last: int, cfg: EncounterConfig
-) -> tuple[dict[Hit, FloatArray], list[NDArray[np.float32] | None], list[NDArray[np.float32] | None]]:
+) -> tuple[dict[Hit, FloatArray], list[NDArray[np.float32] | None], list[NDArray[np.float32] | None], bool]:
     """The colour cost, per track, of each described observation the tracks hold from ``f0`` to ``last``
-    (their hits there: ``spans``; none when colours do not take part, see the module docstring), and each
-    track's colours before the encounter and its tail's after ``last``."""
+    (their hits there: ``spans``; none when colours do not take part, see the module docstring), each
+    track's colours before the encounter and its tail's after ``last``, and whether the tracks may leave
+    the encounter exchanged."""
     views = cfg.appearance_views
     before = [side_colours(obs, h, f0, last, False, views) for h in hs]
     after = [side_colours(obs, h, f0, last, True, views) for h in hs]
+    refs, exchange = before, True
     if cfg.appearance_weight <= 0 or all(c is None for c in before):
-        return {}, before, after
+        return {}, before, after, False
     if any(c is None for c in before) and not _one_side_decides(before, after, cfg):
-        return {}, before, after
+        # a track the camera did not describe before the encounter (it began there) is known by its
+        # tail's colours; the tracks then leave as they came, and colours only say who held what inside
+        refs, exchange = [b if b is not None else a for b, a in zip(before, after, strict=True)], False
+        if any(c is None for c in refs):
+            return {}, before, after, False
     out = {}
     for span in spans:
         for i, r in span:
@@ -360,10 +397,10 @@ def _appearance(
                     0.5 * cfg.appearance_cap
                     if c is None
                     else min(appearance_distance(app[r], c), cfg.appearance_cap)
-                    for c in before
+                    for c in refs
                 ]
                 out[(i, r)] = cfg.appearance_weight * np.array(d)
-    return out, before, after
+    return out, before, after, exchange
 
 
 def _one_side_decides(

@@ -337,3 +337,34 @@ def test_one_sides_colours_decide_when_its_own_tail_is_not_described():
         obs[i] = replace(obs[i], appearance=np.full((2, 6), np.nan, np.float32))
     fixed, _ = _run(obs, tracks)
     assert _rows(fixed[1])[100] == 1
+
+
+def _newcomer(n=120, born=30, seed=3):
+    """P (RED) stands at the origin; Q (GREEN) appears at frame ``born`` 0.3 m beside them, stands there
+    for 2 s and walks off along +y at 1 m/s (row 0 of every frame is P, row 1 Q; 8 cm noise: two people
+    this close are hard to tell apart by their positions)."""
+    p = np.zeros((n, 2))
+    q = np.tile([0.3, 0.0], (n, 1))
+    q[50:, 1] = 0.1 * np.arange(1, n - 49)
+    q[:born] = np.nan
+    return _coloured(_frames(np.stack([p, q], axis=1), sigma=0.08, seed=seed), [RED, GREEN])
+
+
+def test_a_newcomers_detections_go_to_the_track_that_began_with_them():
+    """Q appears beside P; the online tracker kept P's track on Q for 0.8 s and began Q's track on P. Q's
+    track has no colours before the encounter (it began there): its tail's colours stand for it, and each
+    track gets its own person's detections back, from the frame Q's track began. By motion alone the tracks
+    keep some of each other's."""
+    obs = _newcomer()
+    wrong = range(30, 38)
+    tracks = {
+        1: [(i, 1 if i in wrong else 0) for i in range(120)],
+        2: [(i, 0 if i in wrong else 1) for i in range(30, 120)],
+    }
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    assert _rows(fixed[1]) == [0] * 120
+    assert [i for i, _ in fixed[2]] == list(range(30, 120))
+    assert _rows(fixed[2]) == [1] * 90
+    fixed, _ = _run(obs, tracks, appearance_weight=0.0)
+    assert _rows(fixed[1]) != [0] * 120
