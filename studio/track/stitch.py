@@ -553,7 +553,7 @@ def _fill_gaps(
     of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only the one
     who left just before the piece starts continues into it), then where the joints are shortest.
 
-    A chain may also overlap an end of the gap by up to ``max_overlap_s`` (the online pass had two tracks on
+    A chain may also overlap one end of the gap by up to ``max_overlap_s`` (the online pass had two tracks on
     the person for a moment, or the track after the gap began on someone else and took the person over
     later): at the gap's start when it may continue that end by motion from before its own start (or the
     end's last observation lies within ``fill_distance`` of the chain there), at the gap's end when the
@@ -641,8 +641,8 @@ def _fill_gaps(
             if not colours_fit(members, by_id[a], end):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
-            if j1 is None or j2 is None:
-                continue
+            if j1 is None or j2 is None or (j1[0] > 0 and j2[0] > 0):
+                continue  # not walkable, or overlapping both ends (someone else alongside the person)
             # both joints short; or one a motion link within fill_distance and the other walkable (a walker's
             # piece that goes on from where one end is, then walks on to the other)
             close = any(j[0] < 0 and j[1] <= cfg.fill_distance for j in (j1, j2))
