@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -359,7 +359,10 @@ def _shared_hits(
 
 
 def track_offline(
-    observations: Sequence[Observations], *, config: OfflineConfig | None = None
+    observations: Sequence[Observations],
+    *,
+    config: OfflineConfig | None = None,
+    on_stage: Callable[[str, dict[int, _Hits]], None] | None = None,
 ) -> TrackResult:
     """Track people over a whole recording, using past and future observations.
 
@@ -367,6 +370,10 @@ def track_offline(
         observations: one :class:`Observations` per frame (in the odom frame for our method), stamps
             non-decreasing. Frames without people are empty observations, not left out.
         config: options.
+        on_stage: called after each stage with its name and the tracks' hits (id → ``(frame index, row)``
+            in frame order; ids are the stage's own, not the output's): what each stage did, for tracing
+            a wrong identity to the stage that made it (``bench/trace_tracking.py``). It must not modify
+            the hits.
 
     Returns:
         One :class:`~studio.track.base.TrackFrame` per input frame; points are smoothed (unless disabled)
@@ -377,16 +384,22 @@ def track_offline(
     """
     cfg = config or OfflineConfig()
     obs = list(observations)
+    trace = on_stage or (lambda _name, _tracks: None)
     tracklets = _online_pass(obs, cfg)
+    trace("online", tracklets)
     if cfg.duplicates is not None:
         tracklets, _ = merge_duplicates(obs, tracklets, cfg.duplicates)
+        trace("duplicates", tracklets)
     if cfg.claim is not None:
         tracklets, _ = fill_gaps(obs, tracklets, cfg.claim)
+        trace("claim", tracklets)
     colour_cut_pairs: list[tuple[int, int]] = []
     if cfg.colour_cuts is not None:
         tracklets, colour_cut_pairs = cut_colour_changes(obs, tracklets, cfg.colour_cuts)
+        trace("colour_cuts", tracklets)
     if cfg.swaps is not None:
         tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
+        trace("swaps", tracklets)
     cache: _Cache = {}
     cuts: dict[int, int] = {}
     if cfg.stitch is not None and len(tracklets) > 1:
@@ -398,6 +411,7 @@ def track_offline(
     else:
         root = {tid: tid for tid in tracklets}
     merged = join_chains(obs, tracklets, root, cuts, cfg)
+    trace("stitch", merged)
     if cfg.encounters is not None and len(merged) > 1:
 
         def estimate(h: _Hits) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -407,14 +421,19 @@ def track_offline(
         merged, _ = reassign_encounters(
             obs, merged, estimate, accel_sigma=cfg.tracker.accel_sigma, config=cfg.encounters
         )
+        trace("encounters", merged)
     if cfg.duplicates is not None and len(merged) > 1:
         merged, _ = merge_duplicates(obs, merged, cfg.duplicates)
+        trace("duplicates again", merged)
     if cfg.swaps is not None and len(merged) > 1:
         merged, _ = repair_swaps(obs, merged, cfg.swaps)
+        trace("swaps again", merged)
     if cfg.excursions is not None:
         merged, _ = detach_excursions(obs, merged, cfg.excursions)
+        trace("excursions", merged)
     if cfg.gap_fill is not None:
         merged, _ = fill_gaps(obs, merged, cfg.gap_fill)
+        trace("gap_fill", merged)
     return _output(obs, merged, cfg, cache)
 
 

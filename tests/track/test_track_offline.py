@@ -217,6 +217,49 @@ def test_gaps_that_motion_bridges_get_positions_unless_crossed_fast(speed, bridg
     assert max(err) < 0.3
 
 
+def test_each_stage_shows_its_tracks(sim, occluded):
+    """``on_stage`` sees every stage that runs, in order, with the hits it left: the occluded person's two
+    tracklets before stitching, one track after it, and the output's hits as the last stage left them."""
+    _scene, det = occluded
+    seen: list[tuple[str, dict[int, list[tuple[int, int]]]]] = []
+    cfg = OfflineConfig(interpolate_max_gap_s=2.0)
+    res = track_offline(
+        det.observations,
+        config=cfg,
+        on_stage=lambda name, tracks: seen.append((name, {t: list(h) for t, h in tracks.items()})),
+    )
+    names = [name for name, _ in seen]
+    assert names[0] == "online"
+    assert names.index("colour_cuts") < names.index("stitch") < names.index("encounters")
+    assert names[-1] == "gap_fill"
+    person = _hits_by_person(det)[0]
+
+    def holders(tracks: dict[int, list[tuple[int, int]]]) -> set[int]:
+        return {t for t, h in tracks.items() if set(h) & set(person)}
+
+    stages = dict(seen)
+    assert len(holders(stages["swaps"])) >= 2  # lost in the occlusion
+    assert len(holders(stages["stitch"])) == 1
+    out: dict[int, set[tuple[int, int]]] = {}
+    for i, (o, frame) in enumerate(zip(det.observations, res.frames, strict=True)):
+        row = {int(d): r for r, d in enumerate(o.det_index)}
+        for p in frame.points:
+            if p.det_index >= 0:
+                out.setdefault(p.track_id, set()).add((i, row[p.det_index]))
+    last = [set(h) for h in seen[-1][1].values()]
+    assert all(h in last for h in out.values())
+    # a stage that is off is not shown
+    names = []
+    track_offline(
+        det.observations,
+        config=OfflineConfig(colour_cuts=None, encounters=None),
+        on_stage=lambda name, _tracks: names.append(name),
+    )
+    assert "colour_cuts" not in names
+    assert "encounters" not in names
+    assert "stitch" in names
+
+
 def _hits_by_person(det) -> dict[int, list[tuple[int, int]]]:
     """Each person's observations, as the ground truth assigns them (rows of each frame)."""
     hits: dict[int, list[tuple[int, int]]] = {}
