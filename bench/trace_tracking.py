@@ -1,7 +1,7 @@
 """Follow people through the offline tracker's stages on a simulated recording: which stage made a switch.
 
     .venv/bin/python bench/trace_tracking.py --scenario moving --seed 36 --frames 550 700 --persons 4 6
-    .venv/bin/python bench/trace_tracking.py --scenario moving --seed 34 --frames 540 600 --laser-only
+    .venv/bin/python bench/trace_tracking.py --scenario moving --seed 3 --frames 300 400 --laser-only
 
 It runs what ``bench/replay_tracking.py --laser-again`` runs on one recording (the stored pass one, the laser
 detector again on the stored scans, fusion, ``studio label``'s tracking; ``--laser-only`` as there) and
