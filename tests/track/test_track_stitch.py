@@ -398,7 +398,42 @@ def test_a_piece_that_runs_past_the_return_goes_into_the_gap_where_the_return_me
     assert stitch_links([a, piece, far]) == [(0, 2)]
 
 
-@pytest.mark.parametrize("field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s", "few_views"])
+def test_a_second_track_on_someone_goes_into_no_one_elses_gap():
+    # blue is lost at (8, 0), t = 10 s, and re-identified there at t = 35 s; a colourless piece stands at
+    # (8.1, 0) from 14 s to 20 s, as in the test above, but red stands 0.2 m beside it all that time: the
+    # piece is a second track on red (born on one of red's legs), not a piece of blue
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=still, app=BLUE)
+    c = tl(3, 35.0, 40.0, (8.0, 0.1), (8.0, 0.1), v=still, app=BLUE)
+    tp = np.arange(14.0, 20.01, 0.1)
+    piece = with_hits(
+        tl(1, 14.0, 20.0, (8.1, 0.0), (8.1, 0.0), v=still), tp, np.tile([8.1, 0.0], (len(tp), 1))
+    )
+    tr = np.arange(12.0, 22.01, 0.1)
+    red = with_hits(
+        tl(2, 12.0, 22.0, (8.1, 0.2), (8.1, 0.2), v=still, app=RED), tr, np.tile([8.1, 0.2], (len(tr), 1))
+    )
+    assert stitch_links([a, piece, c, red]) == [(0, 3)]
+    # red 0.5 m away (someone walking beside the lost person) leaves the piece to blue's gap, and so does
+    # red beside it for less than half of its observations, or the check switched off
+    apart = with_hits(red, tr, np.tile([8.1, 0.5], (len(tr), 1)))
+    assert stitch_links([a, piece, c, apart]) == [(0, 1), (1, 3)]
+    brief = with_hits(red, tr, np.column_stack([np.full(len(tr), 8.1), np.where(tr < 16.5, 0.2, 3.0)]))
+    assert stitch_links([a, piece, c, brief]) == [(0, 1), (1, 3)]
+    assert stitch_links([a, piece, c, red], config=StitchConfig(beside_m=0.0)) == [(0, 1), (1, 3)]
+    # beside an end of the gap itself (blue's return begins 0.1 s into a 2 s piece) it still goes in
+    tq, tb = np.arange(18.0, 20.01, 0.1), np.arange(18.1, 40.01, 0.1)
+    short = with_hits(
+        tl(1, 18.0, 20.0, (8.1, 0.0), (8.1, 0.0), v=still), tq, np.tile([8.1, 0.0], (len(tq), 1))
+    )
+    back = tl(3, 18.1, 40.0, (8.1, 0.2), (8.1, 0.2), v=still, app=BLUE)
+    back = with_hits(back, tb, np.tile([8.1, 0.2], (len(tb), 1)))
+    assert stitch_links([a, short, back]) == [(0, 1), (1, 3)]
+
+
+@pytest.mark.parametrize(
+    "field", ["reid_max_gap_s", "reid_cost_per_min", "lost_max_gap_s", "few_views", "beside_m"]
+)
 def test_negative_stitch_options_are_refused(field):
     with pytest.raises(ValueError, match="must not be"):
         StitchConfig(**{field: -1.0})
