@@ -585,7 +585,7 @@ def _fill_gaps(
             (by_id[b].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s for a, b in itertools.pairwise(chain)
         )
 
-    free = []  # (head, tail, described members) of chains linked to nothing else
+    free = []  # (head, tail, described members, tracklet ids) of chains linked to nothing else
     for t in tracklets:
         if t.track_id in prv:
             continue
@@ -595,8 +595,7 @@ def _fill_gaps(
         members = [by_id[c] for c in chain if c in described]
         if members and (cfg.fill_max_views <= 0 or chain_reidentifies(chain)):
             continue  # only undescribed pieces; or a chain that is a re-identification of its own
-        beside = set().union(*(_beside(by_id[c], tracklets, set(chain), cfg.beside_m) for c in chain))
-        free.append((by_id[chain[0]], by_id[chain[-1]], members, beside))
+        free.append((by_id[chain[0]], by_id[chain[-1]], members, chain))
     free.sort(key=lambda ht: ht[0].start_ns)
 
     def colours_fit(members: list[Tracklet], a: Tracklet, c: Tracklet) -> bool:
@@ -643,11 +642,10 @@ def _fill_gaps(
         if a in described and c in described and (by_id[c].start_ns - by_id[a].end_ns) * 1e-9 > cfg.max_gap_s
     }
     out = set(links)
-    for head, tail, members, beside in free:  # in time order; each goes into the gap it continues best
+    for head, tail, members, chain in free:  # in time order; each goes into the gap it continues best
         best, best_key = None, (1, np.inf)
+        beside: set[int] | None = None  # the tracklets the chain keeps beside (measured once it fits a gap)
         for (a, c), cur in hosts.items():
-            if beside - {a, c, cur.track_id}:
-                continue  # a second track on someone else
             end = by_id[c]
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
@@ -661,6 +659,11 @@ def _fill_gaps(
             close = any(j[0] < 0 and j[1] <= cfg.fill_distance for j in (j1, j2))
             if not ((j1[2] and j2[2]) or close):
                 continue
+            if beside is None:
+                ids = set(chain)
+                beside = set().union(*(_beside(by_id[m], tracklets, ids, cfg.beside_m) for m in chain))
+            if beside - {a, c, cur.track_id}:
+                continue  # a second track on someone else
             if (key := (j1[0] + j2[0], j1[1] + j2[1])) < best_key:
                 best, best_key = (a, c), key
         if best is not None:
