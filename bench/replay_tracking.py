@@ -6,6 +6,7 @@
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again
     .venv/bin/python bench/replay_tracking.py --scenario rooms --seeds 1 --laser-again --laser-only
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 --laser-step 1.0
+    .venv/bin/python bench/replay_tracking.py --scenario moving --seconds 60 --seeds 1 2 --camera-rate 30
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again --without swaps
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs once
@@ -15,17 +16,20 @@ call then runs the static-world filter, fusion and offline tracking exactly as `
 prints the metrics at 0.2 m; ``--switches`` also lists every identity
 switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
 before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
-person had gone unmatched for more than 10 frames; or *other*), marks the switches that were *undone* (the
-person went from track A to B and back to A within 30 frames: two tracks exchanged people for a moment)
+person had gone unmatched for more than 1 s; or *other*), marks the switches that were *undone* (the
+person went from track A to B and back to A within 3 s: two tracks exchanged people for a moment)
 and counts the kinds and the undone. ``--image-period``
 emulates another image detector period from a pass one that ran the detector on every frame (stored
 separately). ``--laser-again`` runs the current laser detector again on the stored scans (in the base frame,
 so positions differ from ``studio label``'s in the last digits): a laser detector change measured in a minute
 instead of a new pass one. ``--laser-step DEG`` simulates the recordings with coarser scanners (their own
-folders and pass ones): what a robot with a low-cost lidar (~1°) would get. ``--laser-only`` labels as
-``studio label --sources laser`` (the path of a rig without a camera) from a pass one that ran without the
-image detector (stored separately, ~10x faster to make). ``--without STAGE ...`` switches stages of the
-offline tracker off (:data:`STAGES`): what each one still buys, measured on the same detections.
+folders and pass ones): what a robot with a low-cost lidar (~1°) would get. ``--camera-rate HZ`` simulates
+them with the camera at another frame rate (own folders and pass ones; the same people and robot), e.g. 30
+Hz as a Ricoh Theta streams its live panorama: tracking options counted in frames meet 3x as many.
+``--laser-only`` labels as ``studio label --sources laser`` (the path of a rig without a camera) from a pass
+one that ran without the image detector (stored separately, ~10x faster to make). ``--without STAGE ...``
+switches stages of the offline tracker off (:data:`STAGES`): what each one still buys, measured on the same
+detections.
 ``--oracle`` replaces the association (online pass, stitching, encounter and swap repairs) by the ground
 truth: in every frame the observations go one to one to the nearest people within 0.5 m (Hungarian), and each
 person's observations are smoothed, interpolated and output as ``studio label`` outputs a track
@@ -307,33 +311,39 @@ def compare_likelihood(seen: dict[str, Any], oracle: Any) -> None:
         )
 
 
+def frame_seconds(gt: LabelSet) -> dict[int, float]:
+    """Each ground-truth frame's time, s (its stamp; its index at 10 Hz where it has none)."""
+    return {f.frame: f.frame / 10 if f.stamp_ns is None else f.stamp_ns / 1e9 for f in gt.frames}
+
+
 ENCOUNTER_M = 0.8  # a switch with another person this close is an encounter's
-GAP_FRAMES = 10  # a switch this many frames after the person's last match is a re-identification's
+GAP_S = 1.0  # a switch this long after the person's last match is a re-identification's
 
 
-def switch_kind(near_m: float, gap_frames: int) -> str:
+def switch_kind(near_m: float, gap_s: float) -> str:
     """``encounter`` (someone else within :data:`ENCOUNTER_M`), ``after a gap`` (the person had gone
-    unmatched for more than :data:`GAP_FRAMES` frames: stitching or re-identification decided) or
+    unmatched for more than :data:`GAP_S` seconds: stitching or re-identification decided) or
     ``other``."""
     if near_m < ENCOUNTER_M:
         return "encounter"
-    return "after a gap" if gap_frames > GAP_FRAMES else "other"
+    return "after a gap" if gap_s > GAP_S else "other"
 
 
-UNDONE_FRAMES = 30  # a switch from track A to B undone (B back to A) within this many frames
+UNDONE_S = 3.0  # a switch from track A to B undone (B back to A) within this many seconds
 
 
 def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int]:
     """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, and how
     many of them come in *undone* pairs: the person went from track A to track B and back to A within
-    :data:`UNDONE_FRAMES` frames (two tracks exchanged people for a moment; each such pair is two
+    :data:`UNDONE_S` seconds (two tracks exchanged people for a moment; each such pair is two
     switches)."""
     from studio.evaluate.clear import ClearMOT
 
     gt_frames = {f.frame: f for f in gt.frames}
+    seconds = frame_seconds(gt)
     last: dict[int, tuple[int, int]] = {}
     kinds: Counter[str] = Counter()
-    events: list[tuple[int, int, int, int | None, str]] = []  # frame, person, from track, to track, text
+    events: list[tuple[int, int, int, int | None, str]] = []  # stamp, person, from track, to track, text
     clear = ClearMOT(radius=ev.radius)  # CLEAR MOT's own correspondences (they decide the switches)
     for fe in ev.frames:
         pred = None if fe.pred_frame is None else labels[fe.pred_frame]
@@ -345,21 +355,22 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             others = [float(np.hypot(*(people[g] - v))) for k, v in people.items() if k != g]
             near = min(others, default=np.inf)
             before, was = last.get(g, (-1, -1))
-            kind = switch_kind(near, fe.frame - before)
+            gap_s = np.inf if before < 0 else seconds[fe.frame] - seconds[before]
+            kind = switch_kind(near, gap_s)
             kinds[kind] += 1
             text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its last match, frame {before}) "
                 f"-> {match.get(g)} [{kind}]"
             )
-            events.append((fe.frame, g, was, match.get(g), text))
+            events.append((seconds[fe.frame], g, was, match.get(g), text))
         for g, p in match.items():
             last[g] = (fe.frame, p)
     undone: set[int] = set()
     for i, (f, g, a, b, _) in enumerate(events):
         for j in range(i + 1, len(events)):
             f2, g2, a2, b2, _ = events[j]
-            if f2 - f > UNDONE_FRAMES:
+            if f2 - f > UNDONE_S:
                 break
             if g2 == g and a2 == b and b2 == a and i not in undone and j not in undone:
                 undone |= {i, j}
@@ -369,22 +380,24 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     return kinds, len(undone)
 
 
-HANDOVER_FRAMES = 30  # a track matched to another person within this many frames of its last match
+HANDOVER_S = 3.0  # a track matched to another person within this many seconds of its last match
 
 
 def handovers(ev: Any, gt: LabelSet) -> Counter[str]:
     """Print every time an output track goes on from one person to another (matched to person Q, then to
-    person P within :data:`HANDOVER_FRAMES` frames): with Q still there and how far apart the two are, or
+    person P within :data:`HANDOVER_S` seconds): with Q still there and how far apart the two are, or
     Q gone (a hand-off: Q was hidden or left just as P appeared). Returns how many of each kind (Q's
     distance in steps of 0.2 m, or ``the first one gone``)."""
     gt_frames = {f.frame: f for f in gt.frames}
+    seconds = frame_seconds(gt)
     last: dict[int, tuple[int, int]] = {}  # track -> (frame, person) of its last match
     kinds: Counter[str] = Counter()
     for fe in ev.frames:
         people = {q.id: np.array([q.x, q.y]) for q in gt_frames[fe.frame].people}
         for g, p, _ in fe.matches:
             before, q = last.get(p, (-(10**9), g))
-            if q != g and fe.frame - before <= HANDOVER_FRAMES:
+            after_s = seconds[fe.frame] - seconds[before] if before in seconds else np.inf
+            if q != g and after_s <= HANDOVER_S:
                 if q in people:
                     d = float(np.hypot(*(people[g] - people[q])))
                     lo = 0.2 * np.floor(d / 0.2)
@@ -393,10 +406,7 @@ def handovers(ev: Any, gt: LabelSet) -> Counter[str]:
                 else:
                     kind, how = "the first one gone", f"person {q} gone"
                 kinds[kind] += 1
-                print(
-                    f"  frame {fe.frame:5d} track {p:3d}: person {q} -> {g} "
-                    f"after {fe.frame - before} frames; {how}"
-                )
+                print(f"  frame {fe.frame:5d} track {p:3d}: person {q} -> {g} after {after_s:.1f} s; {how}")
             last[p] = (fe.frame, g)
     return kinds
 
@@ -422,6 +432,13 @@ def main() -> None:
         default=None,
         metavar="DEG",
         help="simulate the scanners with this angular step (default 0.25°), e.g. 1.0 for a low-cost lidar",
+    )
+    ap.add_argument(
+        "--camera-rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="simulate the camera at this frame rate (default 10 Hz), e.g. 30 as a Ricoh Theta streams",
     )
     ap.add_argument(
         "--laser-again", action="store_true", help="run the laser detector again on the stored scans"
@@ -465,6 +482,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.laser_step is not None and not args.laser_step > 0:
         ap.error(f"--laser-step must be > 0 degrees, got {args.laser_step}")
+    if args.camera_rate is not None and not args.camera_rate > 0:
+        ap.error(f"--camera-rate must be > 0 Hz, got {args.camera_rate}")
     options = LabelOptions()
     if args.min_walk is not None:
         options = replace(options, min_walk_m=args.min_walk)
@@ -475,7 +494,9 @@ def main() -> None:
     total_undone = 0
     runs: list[Run] = []
     for seed in args.seeds:
-        rec = recording(args.scenario, args.seconds, seed, laser_step_deg=args.laser_step)
+        rec = recording(
+            args.scenario, args.seconds, seed, laser_step_deg=args.laser_step, camera_rate_hz=args.camera_rate
+        )
         if args.image_period is None:
             # laser only: a pass one without the image detector (~10x faster, stored on its own)
             frames, cam = perception(rec, replace(options, sources="laser") if args.laser_only else options)
@@ -533,7 +554,7 @@ def main() -> None:
         print(
             "all: "
             + ", ".join(f"{k} {n}" for k, n in sorted(total.items()))
-            + f"; {total_undone} of them undone (A to B and back within {UNDONE_FRAMES} frames)"
+            + f"; {total_undone} of them undone (A to B and back within {UNDONE_S:g} s)"
         )
 
 

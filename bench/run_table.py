@@ -47,15 +47,24 @@ METHODS = {
 
 
 def recording(
-    scenario: str, seconds: float | None, seed: int, *, laser_step_deg: float | None = None
+    scenario: str,
+    seconds: float | None,
+    seed: int,
+    *,
+    laser_step_deg: float | None = None,
+    camera_rate_hz: float | None = None,
 ) -> Path:
     """The simulated recording (simulated on the first call). ``laser_step_deg``: the rig's scanners with
-    this angular step instead of 0.25° (same field of view), e.g. 1.0 for a low-cost lidar."""
+    this angular step instead of 0.25° (same field of view), e.g. 1.0 for a low-cost lidar.
+    ``camera_rate_hz``: the camera at this frame rate instead of 10 Hz (the same people and robot)."""
     name = f"{scenario}-{'full' if seconds is None else f'{seconds:g}s'}-seed{seed}-sim{SIM_VERSION}"
     rig = None
+    if camera_rate_hz is not None:
+        name += f"-cam{camera_rate_hz:g}hz"
+        rig = replace(SimRig(), camera_rate_hz=camera_rate_hz)
     if laser_step_deg is not None:
         name += f"-laser{laser_step_deg:g}deg"
-        base = SimRig()
+        base = rig or SimRig()
         step = float(np.deg2rad(laser_step_deg))
         rig = replace(
             base,

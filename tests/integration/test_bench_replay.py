@@ -15,8 +15,10 @@ from studio.track.base import Observations
 from studio.track.offline import tracks_from_hits
 
 
-def _frame(i: int, people: dict[int, tuple[float, float]]) -> LabelFrame:
-    return LabelFrame(i, tuple(LabelPerson(pid, x, y) for pid, (x, y) in people.items()), stamp_ns=i * 10**8)
+def _frame(i: int, people: dict[int, tuple[float, float]], period_ns: int = 10**8) -> LabelFrame:
+    return LabelFrame(
+        i, tuple(LabelPerson(pid, x, y) for pid, (x, y) in people.items()), stamp_ns=i * period_ns
+    )
 
 
 def test_handovers_tells_a_hand_off_from_a_neighbour(capsys: pytest.CaptureFixture[str]) -> None:
@@ -40,9 +42,9 @@ def test_handovers_tells_a_hand_off_from_a_neighbour(capsys: pytest.CaptureFixtu
     kinds = load_bench("replay_tracking").handovers(ev, truth)
     assert kinds == {"the first one gone": 1, "0.4-0.6 m": 2}
     out = capsys.readouterr().out
-    assert "frame    10 track   7: person 1 -> 2 after 1 frames; person 1 gone" in out
-    assert "frame    15 track   8: person 3 -> 4 after 1 frames; person 3 still there, 0.50 m away" in out
-    assert "frame    17 track   8: person 4 -> 3 after 1 frames; person 4 still there, 0.50 m away" in out
+    assert "frame    10 track   7: person 1 -> 2 after 0.1 s; person 1 gone" in out
+    assert "frame    15 track   8: person 3 -> 4 after 0.1 s; person 3 still there, 0.50 m away" in out
+    assert "frame    17 track   8: person 4 -> 3 after 0.1 s; person 4 still there, 0.50 m away" in out
 
 
 def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.CaptureFixture[str]) -> None:
@@ -105,6 +107,21 @@ def test_switches_names_the_track_clear_mot_kept_not_the_nearest(capsys: pytest.
         "frame     6 person   1 at  2.0 m, nearest other  inf m: track 1 (its last match, frame 5) -> 2"
         in (out)
     )
+
+
+@pytest.mark.parametrize(("period_ns", "kind"), [(10**8, "after a gap"), (10**9 // 30, "other")])
+def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(period_ns: int, kind: str) -> None:
+    """Person 1 goes unmatched for 15 frames, then track 2 takes them: 1.5 s at 10 Hz is a gap, 0.5 s at
+    30 Hz is not."""
+    gt, pred = [], []
+    for i in range(30):
+        gt.append(_frame(i, {1: (2.0, 0.0)}, period_ns))
+        p = {} if 5 <= i < 20 else {1 if i < 5 else 2: (2.0, 0.0)}
+        pred.append(_frame(i, p, period_ns))
+    truth = LabelSet.from_frames(gt)
+    ev = evaluate(LabelSet.from_frames(pred), truth)
+    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    assert kinds == {kind: 1}
 
 
 def _walk(swap: bool) -> tuple[list[Observations], dict[int, list[tuple[int, int]]]]:
