@@ -87,6 +87,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="moving")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--seconds", type=float, default=None, help="the recording's length, as replay_tracking's")
+    ap.add_argument("--camera-rate", type=float, default=None, metavar="HZ", help="as replay_tracking's")
     ap.add_argument("--frames", nargs=2, type=int, default=[0, 10**9], metavar=("FIRST", "LAST"))
     ap.add_argument("--persons", nargs="+", type=int, default=[], help="only tracks that held these people")
     ap.add_argument("--radius", type=float, default=0.5, help="an observation of a person lies this near, m")
@@ -94,7 +96,7 @@ def main() -> None:
     ap.add_argument("--laser-only", action="store_true", help="as --sources laser")
     args = ap.parse_args()
     options = LabelOptions()
-    rec = recording(args.scenario, None, args.seed)
+    rec = recording(args.scenario, args.seconds, args.seed, camera_rate_hz=args.camera_rate)
     frames, cam = perception(rec, replace(options, sources="laser") if args.laser_only else options)
     frames = laser_again(frames)
     if args.laser_only:
