@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/trace_tracking.py --scenario moving --seed 36 --frames 550 700 --persons 4 6
     .venv/bin/python bench/trace_tracking.py --scenario moving --seed 3 --frames 300 400 --laser-only
+    .venv/bin/python bench/trace_tracking.py --seed 11 --seconds 60 --camera-rate 30 --frames 780 830
 
 It runs what ``bench/replay_tracking.py --laser-again`` runs on one recording (the stored pass one, the laser
 detector again on the stored scans, fusion, ``studio label``'s tracking; ``--laser-only`` as there) and
@@ -87,7 +88,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenario", default="moving")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--seconds", type=float, default=None, help="the recording's length, as replay_tracking's")
+    ap.add_argument("--seconds", type=float, default=None, help="recording length, as replay_tracking.s")
     ap.add_argument("--camera-rate", type=float, default=None, metavar="HZ", help="as replay_tracking's")
     ap.add_argument("--frames", nargs=2, type=int, default=[0, 10**9], metavar=("FIRST", "LAST"))
     ap.add_argument("--persons", nargs="+", type=int, default=[], help="only tracks that held these people")
