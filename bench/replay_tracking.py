@@ -337,16 +337,19 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     many of them come in *undone* pairs: the person went from track A to track B and back to A within
     :data:`UNDONE_S` seconds (two tracks exchanged people for a moment; each such pair is two
     switches)."""
+    from studio.evaluate.align import align_frames
     from studio.evaluate.clear import ClearMOT
 
     gt_frames = {f.frame: f for f in gt.frames}
     seconds = frame_seconds(gt)
+    # each ground-truth frame's prediction as the evaluator aligned it (interpolated where it had to be)
+    aligned = {g.frame: pf for g, pf in align_frames(LabelSet.from_frames(labels), gt).pairs}
     last: dict[int, tuple[int, int]] = {}
     kinds: Counter[str] = Counter()
     events: list[tuple[int, int, int, int | None, str]] = []  # stamp, person, from track, to track, text
     clear = ClearMOT(radius=ev.radius)  # CLEAR MOT's own correspondences (they decide the switches)
     for fe in ev.frames:
-        pred = None if fe.pred_frame is None else labels[fe.pred_frame]
+        pred = None if fe.pred_frame is None else aligned[fe.frame]
         cf = clear.update(gt_frames[fe.frame], pred, sequence=fe.sequence)
         assert sorted(cf.switches) == sorted(fe.switch_ids)
         match = {g: p for g, p, _ in cf.matches}

@@ -124,6 +124,18 @@ def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(period_ns: int, k
     assert kinds == {kind: 1}
 
 
+def test_switches_reads_the_predictions_as_the_evaluator_aligned_them() -> None:
+    """Predictions on every other frame only (the evaluator interpolates the frames between): person 1 goes
+    from track 1 to track 2 at frame 10, one switch, found where the evaluator found it."""
+    gt = [_frame(i, {1: (2.0 + 0.05 * i, 0.0)}) for i in range(20)]
+    pred = [_frame(i, {1 if i < 10 else 2: (2.0 + 0.05 * i, 0.0)}) for i in range(0, 20, 2)]
+    truth = LabelSet.from_frames(gt)
+    ev = evaluate(LabelSet.from_frames(pred), truth)
+    assert ev.metrics()["id_switches"] == 1
+    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    assert sum(kinds.values()) == 1
+
+
 def _walk(swap: bool) -> tuple[list[Observations], dict[int, list[tuple[int, int]]]]:
     """Two people walking side by side 1 m apart at 1 m/s, observed at 10 Hz; each wears other colours.
     Their tracks as a tracker that kept them apart (``swap`` False) or exchanged them halfway made them."""
