@@ -346,7 +346,7 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     aligned = {g.frame: pf for g, pf in align_frames(LabelSet.from_frames(labels), gt).pairs}
     last: dict[int, tuple[int, int]] = {}
     kinds: Counter[str] = Counter()
-    events: list[tuple[int, int, int, int | None, str]] = []  # stamp, person, from track, to track, text
+    events: list[tuple[float, int, int, int | None, str]] = []  # time (s), person, from track, to track, text
     clear = ClearMOT(radius=ev.radius)  # CLEAR MOT's own correspondences (they decide the switches)
     for fe in ev.frames:
         pred = None if fe.pred_frame is None else aligned[fe.frame]
