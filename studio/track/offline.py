@@ -120,6 +120,12 @@ class OfflineConfig:
             Held-out simulated ``moving`` seed 29 (session 60, ``docs/results.md``): a tracklet that began on
             person 3's second leg beside their own track and went on with person 2 took person 2's track
             over where the two overlapped, and 1.1 s of person 2 came out on person 3; two switches.
+        correlation_s: observations' errors stay correlated for about this long, seconds (a leg pair's
+            centre moves with the gait, a person's blob keeps the same part hidden): where the frames come
+            faster than one per ``correlation_s``, every observation's covariance is widened by
+            ``correlation_s`` over the median time between frames, so that a second of observations
+            weighs about as much at any frame rate (0: observations are independent at any rate). See
+            :data:`studio.pipeline.base.PIPELINE_TRACKING`.
     """
 
     tracker: UkfTrackerConfig = field(default_factory=lambda: UkfTrackerConfig(max_coast_s=1.0))
@@ -148,6 +154,7 @@ class OfflineConfig:
     shared_radius: float = 0.6
     shared_sigma: float = 0.3
     overlap_margin: float = 0.15
+    correlation_s: float = 0.0
 
     def __post_init__(self) -> None:
         if (
@@ -159,8 +166,10 @@ class OfflineConfig:
                 "interpolate_max_gap_s and interpolate_any_speed_s must be non-negative, "
                 "interpolate_max_speed positive"
             )
-        if self.shared_radius < 0 or self.shared_sigma < 0 or self.overlap_margin < 0:
-            raise ValueError("shared_radius, shared_sigma and overlap_margin must be non-negative")
+        if min(self.shared_radius, self.shared_sigma, self.overlap_margin, self.correlation_s) < 0:
+            raise ValueError(
+                "shared_radius, shared_sigma, overlap_margin and correlation_s must be non-negative"
+            )
 
 
 # A track's hits: (frame index, row in that frame's Observations), in frame order.
@@ -358,6 +367,20 @@ def _shared_hits(
     return out
 
 
+def _decorrelated(obs: list[Observations], correlation_s: float) -> list[Observations]:
+    """The observations with their covariances widened for errors correlated over ``correlation_s``
+    (``OfflineConfig.correlation_s``): by ``correlation_s`` over the median time between frames, where
+    that is more than 1 % over 1; else as they are."""
+    steps = np.diff(np.array([o.stamp_ns for o in obs], dtype=np.float64))
+    steps = steps[steps > 0]
+    if correlation_s <= 0 or not len(steps):
+        return obs
+    factor = correlation_s / (float(np.median(steps)) * 1e-9)
+    if factor <= 1.01:
+        return obs
+    return [replace(o, cov=o.cov * factor) for o in obs]
+
+
 def track_offline(
     observations: Sequence[Observations],
     *,
@@ -383,7 +406,7 @@ def track_offline(
         TrackingError: stamps decrease.
     """
     cfg = config or OfflineConfig()
-    obs = list(observations)
+    obs = _decorrelated(list(observations), cfg.correlation_s)
     trace = on_stage or (lambda _name, _tracks: None)
     tracklets = _online_pass(obs, cfg)
     trace("online", tracklets)

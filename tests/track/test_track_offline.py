@@ -396,3 +396,50 @@ def test_an_overlap_keeps_the_side_on_the_joint_way():
     assert join_chains(obs, {0: a, 1: b}, {0: 0, 1: 1}, {}, cfg) == {0: a, 1: b}
     with pytest.raises(ValueError, match="overlap_margin"):
         OfflineConfig(overlap_margin=-0.1)
+
+
+def _walker_with_held_errors(rate_hz: float, seed: int) -> tuple[list[Observations], NDArray[np.float64]]:
+    """One person walking along x at 1 m/s for 10 s, observed at ``rate_hz`` with 5 cm errors that stay the
+    same for 0.1 s (a detector's error shared by frames close in time), and the true positions."""
+    rng = np.random.default_rng(seed)
+    obs, truth, err, drawn = [], [], np.zeros(2), -1.0
+    for k in range(int(10 * rate_hz)):
+        t = k / rate_hz
+        if t - drawn >= 0.1 - 1e-9:
+            err, drawn = rng.normal(0.0, 0.05, 2), t
+        truth.append((t, 1.0))
+        obs.append(Observations.create(round(t * 1e9), [np.add(truth[-1], err)], sigma_m=0.05))
+    return obs, np.array(truth)
+
+
+def _nees_and_rmse(rate_hz: float, correlation_s: float) -> tuple[float, float]:
+    """Mean normalised squared error of the smoothed positions (2 for honest covariances) and their RMS
+    error, m, away from the first and last second, over five walkers."""
+    nees, sq = [], []
+    for seed in range(5):
+        obs, truth = _walker_with_held_errors(rate_hz, seed)
+        res = track_offline(obs, config=OfflineConfig(correlation_s=correlation_s))
+        for k, frame in enumerate(res.frames):
+            for p in frame.points if rate_hz <= k < 9 * rate_hz else ():
+                e = p.xy - truth[k]
+                nees.append(float(e @ np.linalg.solve(p.cov, e)))
+                sq.append(float(e @ e))
+    return float(np.mean(nees)), float(np.sqrt(np.mean(sq)))
+
+
+def test_observations_closer_in_time_than_their_errors_last_count_as_one():
+    """A 30 Hz sensor's errors are shared by neighbouring frames; taken as independent, the track follows
+    them and claims three times the information it has. ``correlation_s`` widens the observations by the
+    rate over 1 / ``correlation_s``: at 30 Hz the track is then as honest and as accurate as at 10 Hz, where
+    nothing changes."""
+    assert _nees_and_rmse(10.0, 0.1) == _nees_and_rmse(10.0, 0.0)
+    nees_10, rmse_10 = _nees_and_rmse(10.0, 0.1)
+    nees_plain, rmse_plain = _nees_and_rmse(30.0, 0.0)
+    nees_wide, rmse_wide = _nees_and_rmse(30.0, 0.1)
+    assert nees_plain > 3.0  # over-confident
+    assert nees_wide < 2.0
+    assert abs(nees_wide - nees_10) < 0.3
+    assert rmse_wide < 0.95 * rmse_plain
+    assert rmse_wide < 1.05 * rmse_10
+    with pytest.raises(ValueError, match="correlation_s"):
+        OfflineConfig(correlation_s=-0.1)
