@@ -124,7 +124,8 @@ class OfflineConfig:
             centre moves with the gait, a person's blob keeps the same part hidden): where the frames come
             faster than one per ``correlation_s``, every observation's covariance is widened by
             ``correlation_s`` over the median time between frames, so that a second of observations
-            weighs about as much at any frame rate (0: observations are independent at any rate). See
+            weighs about as much at any frame rate (0: observations are independent at any rate), and an
+            excursion (``ExcursionConfig.max_hits``) may hold as many times more hits. See
             :data:`studio.pipeline.base.PIPELINE_TRACKING`.
     """
 
@@ -367,18 +368,21 @@ def _shared_hits(
     return out
 
 
-def _decorrelated(obs: list[Observations], correlation_s: float) -> list[Observations]:
-    """The observations with their covariances widened for errors correlated over ``correlation_s``
-    (``OfflineConfig.correlation_s``): by ``correlation_s`` over the median time between frames, where
-    that is more than 1 % over 1; else as they are."""
+def _for_rate(obs: list[Observations], cfg: OfflineConfig) -> tuple[list[Observations], OfflineConfig]:
+    """The observations and options for the frames' rate (``OfflineConfig.correlation_s``): with ``n``
+    frames within ``correlation_s`` (``correlation_s`` over the median time between frames), where ``n``
+    is more than 1 % over 1, every covariance widened by ``n`` and an excursion's longest run ``n`` times as
+    many hits; else as they are."""
     steps = np.diff(np.array([o.stamp_ns for o in obs], dtype=np.float64))
     steps = steps[steps > 0]
-    if correlation_s <= 0 or not len(steps):
-        return obs
-    factor = correlation_s / (float(np.median(steps)) * 1e-9)
-    if factor <= 1.01:
-        return obs
-    return [replace(o, cov=o.cov * factor) for o in obs]
+    if cfg.correlation_s <= 0 or not len(steps):
+        return obs, cfg
+    n = cfg.correlation_s / (float(np.median(steps)) * 1e-9)
+    if n <= 1.01:
+        return obs, cfg
+    if cfg.excursions is not None:
+        cfg = replace(cfg, excursions=replace(cfg.excursions, max_hits=round(cfg.excursions.max_hits * n)))
+    return [replace(o, cov=o.cov * n) for o in obs], cfg
 
 
 def track_offline(
@@ -405,8 +409,7 @@ def track_offline(
     Raises:
         TrackingError: stamps decrease.
     """
-    cfg = config or OfflineConfig()
-    obs = _decorrelated(list(observations), cfg.correlation_s)
+    obs, cfg = _for_rate(list(observations), config or OfflineConfig())
     trace = on_stage or (lambda _name, _tracks: None)
     tracklets = _online_pass(obs, cfg)
     trace("online", tracklets)
@@ -523,14 +526,13 @@ def tracks_from_hits(
         observations: one :class:`Observations` per frame, as for :func:`track_offline`.
         tracks: track id → its hits ``(frame index, row in that frame's observations)``, one per frame at
             most; the lists are not modified.
-        config: options (only the smoothing, interpolation, shared-observation and minimum-track ones are
-            used).
+        config: options (only the smoothing, interpolation, shared-observation, minimum-track and
+            ``correlation_s`` ones are used).
 
     Raises:
         ValueError: a hit names a frame or row that does not exist, or two hits of one track share a frame.
     """
-    cfg = config or OfflineConfig()
-    obs = list(observations)
+    obs, cfg = _for_rate(list(observations), config or OfflineConfig())
     out: dict[int, _Hits] = {}
     for tid, h in tracks.items():
         hits = sorted((int(i), int(r)) for i, r in h)

@@ -441,5 +441,15 @@ def test_observations_closer_in_time_than_their_errors_last_count_as_one():
     assert abs(nees_wide - nees_10) < 0.3
     assert rmse_wide < 0.95 * rmse_plain
     assert rmse_wide < 1.05 * rmse_10
+    # the excursions' longest run is counted in as many more hits (a 0.8 s run is 8 hits at 10 Hz)
+    from studio.track.offline import _for_rate
+
+    cfg = OfflineConfig(correlation_s=0.1)
+    for rate_hz, hits, widened in ((10.0, 8, 1.0), (30.0, 24, 3.0)):
+        obs = _walker_with_held_errors(rate_hz, 0)[0]
+        wide, used = _for_rate(obs, cfg)
+        assert used.excursions is not None
+        assert used.excursions.max_hits == hits
+        np.testing.assert_allclose(wide[5].cov, widened * obs[5].cov)
     with pytest.raises(ValueError, match="correlation_s"):
         OfflineConfig(correlation_s=-0.1)
