@@ -14,13 +14,25 @@ from studio.labels.formats import (
     write_labels_jsonl,
     write_labels_yaml,
 )
+from studio.labels.review import (
+    REVIEW_KINDS,
+    ReviewConfig,
+    ReviewPoint,
+    read_review,
+    review_jsonl,
+    review_points,
+    write_review,
+)
 
 __all__ = [
+    "REVIEW_KINDS",
     "SOURCES",
     "LabelError",
     "LabelFrame",
     "LabelPerson",
     "LabelSet",
+    "ReviewConfig",
+    "ReviewPoint",
     "dumps_jsonl",
     "dumps_yaml",
     "frame_from_json",
@@ -28,7 +40,11 @@ __all__ = [
     "read_labels",
     "read_labels_jsonl",
     "read_labels_yaml",
+    "read_review",
+    "review_jsonl",
+    "review_points",
     "write_labels",
     "write_labels_jsonl",
     "write_labels_yaml",
+    "write_review",
 ]
