@@ -23,6 +23,7 @@ RUN_OUTPUTS = (
     "tracks_mot.csv",
     "boxes_coco.json",
     "image_detections.jsonl",
+    "review.jsonl",
     "recording.rrd",
     "frames",
     "DATASET.md",
@@ -101,7 +102,7 @@ def run_label(
             for bar in bars:
                 bar.close()
         detections = observations_to_frames(result.detections)
-        write_label_files(
+        result.counts["review_points"] = write_label_files(
             tmp,
             result.labels,
             detections,
@@ -157,6 +158,12 @@ def run(args: argparse.Namespace) -> int:
         f"labeled {c['frames']} frames, {c['tracks']} tracks, {c['observations']} observations "
         f"in {info['wall_s']:.1f} s → {args.out}"
     )
+    n = c.get("review_points", 0)
+    if n:
+        print(
+            f"{n} moment{'s' * (n != 1)} where identities are worth checking: {args.out}/review.jsonl "
+            f"(studio annotate {args.out}, key c)"
+        )
     for note in info["notes"]:
         print(f"note: {note}")
     return 0

@@ -1,6 +1,6 @@
 """Files of a labeled run (DESIGN.md §2): labels.yaml, labels.jsonl, detections.yaml, tracks_mot.csv,
-boxes_coco.json, run.json. Every writer is atomic; :func:`write_run` builds the whole run directory in a
-temporary sibling and renames it into place, so a failed run never leaves half its files."""
+boxes_coco.json, review.jsonl, run.json. Every writer is atomic; :func:`write_run` builds the whole run
+directory in a temporary sibling and renames it into place, so a failed run never leaves half its files."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from typing import Any
 
 from studio import __version__
 from studio.atomic import atomic_write_text
-from studio.labels import LabelFrame, write_labels_jsonl, write_labels_yaml
+from studio.labels import LabelFrame, review_points, write_labels_jsonl, write_labels_yaml, write_review
 
 __all__ = [
     "coco_json",
@@ -122,16 +122,21 @@ def write_label_files(
     *,
     image_size: tuple[int, int] | None,
     image_detections: Sequence[tuple[int, int, Any]] = (),
-) -> None:
-    """labels.yaml/.jsonl, detections.yaml, tracks_mot.csv, boxes_coco.json (and the raw image detections,
-    ``image_detections.jsonl``, when the image detector ran) in ``run_dir``."""
+) -> int:
+    """labels.yaml/.jsonl, detections.yaml, tracks_mot.csv, boxes_coco.json, review.jsonl (the moments
+    where identities are worth checking, :mod:`studio.labels.review`) and the raw image detections
+    (``image_detections.jsonl``, when the image detector ran) in ``run_dir``. Returns how many review
+    points there are."""
     write_labels_yaml(run_dir / "labels.yaml", labels)
     write_labels_jsonl(run_dir / "labels.jsonl", labels)
+    points = review_points(labels)
+    write_review(run_dir / "review.jsonl", points)
     write_labels_yaml(run_dir / "detections.yaml", detections)
     atomic_write_text(run_dir / "tracks_mot.csv", mot_csv(labels))
     atomic_write_text(run_dir / "boxes_coco.json", json.dumps(coco_json(labels, image_size=image_size)))
     if image_detections:
         atomic_write_text(run_dir / "image_detections.jsonl", image_detections_jsonl(image_detections))
+    return len(points)
 
 
 def image_detections_jsonl(dets: Sequence[tuple[int, int, Any]]) -> str:

@@ -13,6 +13,7 @@ import pytest
 
 from studio.commands.label import run_label
 from studio.evaluate import evaluate
+from studio.labels import read_labels, read_review
 from studio.pipeline import LabelOptions
 
 pytestmark = pytest.mark.slow
@@ -48,12 +49,17 @@ def test_run_directory_has_every_contract_file(runs: dict[str, dict]) -> None:
         "detections.yaml",
         "tracks_mot.csv",
         "boxes_coco.json",
+        "review.jsonl",
         "run.json",
         "recording.rrd",
     ):
         assert (run / name).is_file(), name
     info = json.loads((run / "run.json").read_text())
     assert {"timings_s", "versions", "options", "counts"} <= set(info)
+    points = read_review(run / "review.jsonl")
+    assert info["counts"]["review_points"] == len(points) > 0
+    frames = {f.frame: {p.id for p in f.people} for f in read_labels(run / "labels.jsonl").frames}
+    assert all(set(p.ids) <= frames[p.frame] for p in points)  # each point names tracks of its frame
     coco = json.loads((run / "boxes_coco.json").read_text())
     assert coco["annotations"]
     assert all("track_id" in a and "position_base" in a for a in coco["annotations"])
