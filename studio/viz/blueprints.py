@@ -77,6 +77,7 @@ def _metrics() -> rrb.Tabs:
     return rrb.Tabs(
         rrb.TimeSeriesView(origin=f"{ep.METRICS}/counts", name="counts"),
         rrb.TimeSeriesView(origin=f"{ep.METRICS}/eval", name="metrics vs ground truth"),
+        rrb.TextLogView(origin=ep.REVIEW, name="identities to check (click to jump)"),
         name="metrics",
     )
 
@@ -91,7 +92,8 @@ def _blueprint(name: str, root: rrb.Container) -> rrb.Blueprint:
 
 
 def review_blueprint() -> rrb.Blueprint:
-    """Panorama with boxes and projected scan; bird's-eye 3D view; cube faces; metrics plots."""
+    """Panorama with boxes and projected scan; bird's-eye 3D view; cube faces; metrics plots and the
+    identities to check (review points)."""
     root = rrb.Vertical(
         rrb.Horizontal(
             _panorama("panorama", ["$origin/**", f"- {ep.PANORAMA}/ground_truth"]),

@@ -29,6 +29,8 @@ The tree (``*``: one entity per sensor or face; "finish": logged after tracking 
     metrics/calibration/*                 Scalars per frame: box centre − projected laser column / row, px
     metrics/eval/*                        Scalars per frame vs ground truth: tp fp fn id_switches error_m,
                                           running f1 and mota (finish, with GT)
+    review                                TextLog: moments where identities are worth checking, as
+                                          review.jsonl lists them (finish)
     compare/events                        TextLog: frames where labels and ground truth disagree (finish)
     compare/summary                       TextDocument: the evaluation table (finish, with GT)
 
@@ -53,6 +55,7 @@ __all__ = [
     "METRICS",
     "ODOM",
     "PANORAMA",
+    "REVIEW",
     "ROBOT",
     "TIMELINE_FRAME",
     "TIMELINE_TIME",
@@ -73,6 +76,7 @@ FACES = "camera/faces"
 FACE_NAMES = ("front", "left", "back", "right")
 METRICS = "metrics"
 CALIBRATION = "metrics/calibration"
+REVIEW = "review"
 COMPARE_EVENTS = "compare/events"
 COMPARE_SUMMARY = "compare/summary"
 

@@ -137,11 +137,27 @@ def log_run_series(
             _calibration(rec, frames, result.camera)
     _tracks(rec, list(result.labels), trail_s=trail_s, camera=pano_camera)
     _counts(rec, frames, list(result.labels))
+    _review(rec, list(result.labels))
     if ground_truth is not None:
         from studio.labels.formats import read_labels
         from studio.viz.compare import log_ground_truth
 
         log_ground_truth(rec, list(result.labels), read_labels(ground_truth), camera=pano_camera)
+
+
+def _review(rec: rr.RecordingStream, labels: list[LabelFrame]) -> None:
+    """The moments where identities are worth checking (:mod:`studio.labels.review`), as a text log."""
+    from studio.labels.review import review_points
+
+    points = review_points(labels) if all(f.stamp_ns is not None for f in labels) else []
+    if points:
+        rec.send_columns(
+            ep.REVIEW,
+            indexes=_times([p.frame for p in points], [p.stamp_ns for p in points]),
+            columns=rr.TextLog.columns(
+                text=[f"frame {p.frame} ({p.kind}): {p.note}" for p in points], level=["WARN"] * len(points)
+            ),
+        )
 
 
 def _robot(rec: rr.RecordingStream, frames: list[Any]) -> None:

@@ -205,3 +205,30 @@ def test_panorama_without_image_detections(tmp_path: Path) -> None:
     assert _n(rows, "/camera/panorama/boxes", "Boxes2D:half_sizes") == [0] * vs.N_FRAMES
     assert _n(rows, "/world/odom/robot/laser_people", "Points3D:positions") == [0] * vs.N_FRAMES
     assert len([r for r in rows["/camera/panorama"] if r.get("frame") is not None]) == vs.N_FRAMES
+
+
+def test_review_points_as_a_text_log(tmp_path: Path) -> None:
+    """The moments review.jsonl lists are a text log at their frames (click to jump in the viewer)."""
+    from dataclasses import replace
+
+    from studio.labels.base import LabelPerson
+
+    syn = vs.build(tmp_path, with_gt=False)
+    # track 2 walks up to track 1 (within 0.5 m in frames 3-5): one encounter, at the last of them
+    labels = []
+    for f in syn.run.labels:
+        people = [p for p in f.people if p.id == 1]
+        if f.frame >= 2:
+            people.append(LabelPerson(2, 2.0, 0.5 + (0.35 if f.frame >= 3 else 1.0)))
+        labels.append(replace(f, people=tuple(people)))
+    syn.run.labels = labels
+    vs.log_run(tmp_path / "r.rrd", syn)
+    rows, timelines = read_rows(tmp_path / "r.rrd")
+    logged = [r for r in rows["/review"] if r.get("frame") is not None]
+    assert [r["frame"] for r in logged] == [vs.N_FRAMES - 1]
+    assert "tracks 1 and 2 came within 0.35 m" in logged[0]["TextLog:text"][0]
+    assert timelines["/review"] == {"frame", "time"}
+    # nothing to check: no entity
+    syn.run.labels = [replace(f, people=tuple(p for p in f.people if p.id == 1)) for f in labels]
+    vs.log_run(tmp_path / "r2.rrd", syn)
+    assert "/review" not in read_rows(tmp_path / "r2.rrd")[0]
