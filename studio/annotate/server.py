@@ -11,15 +11,16 @@ Endpoints::
 
     GET  /                              the page
     GET  /static/{name}                 index.html, app.js, style.css
-    GET  /api/meta                      run name, frame count, stamps, camera, sizes, rev
+    GET  /api/meta                      run name, frame count, stamps, camera, sizes, rev, doubt frames
     GET  /api/state                     rev, metrics rev, reviewed count, Rerun link (what a page polls)
-    GET  /api/frame/{n}                 ground truth, auto labels, scan (xy + uv), trails, flags, who changed
+    GET  /api/frame/{n}                 ground truth, auto labels, scan (xy + uv), trails, flags, doubts,
+                                        who changed
     GET  /api/frame/{n}/panorama.jpg    the panorama (downscaled, cached)
     POST /api/op                        {"op": {...}, "base_rev": r, "client": "..."} → {rev, frames, op}
     POST /api/undo, /api/redo           {"base_rev": r, "client": "..."}
     GET  /api/history?frame=&limit=     the corrections log, newest first
     GET  /api/metrics                   auto labels vs ground truth on the reviewed frames
-    GET  /api/next?kind=flag|unreviewed&from=n&dir=1|-1
+    GET  /api/next?kind=flag|unreviewed|doubt&from=n&dir=1|-1   (doubt: the run's review.jsonl)
     GET  /api/rerun                     the Rerun link's state; POST /api/rerun/time {"frame": n}
 """
 
@@ -36,6 +37,7 @@ from typing import Any
 
 from studio.annotate.media import MediaError, RunMedia
 from studio.errors import StudioError
+from studio.labels import LabelError, read_review
 
 __all__ = ["AnnotateServer", "ApiError", "ServerError"]
 
@@ -100,6 +102,13 @@ class AnnotateServer:
         self.auto = read_labels(self.run_dir / "labels.jsonl").by_frame()
         if not self.auto:
             raise ServerError(f"{self.run_dir}/labels.jsonl has no frames: nothing to annotate")
+        try:
+            points = read_review(self.run_dir / "review.jsonl")  # none in a run made before it existed
+        except LabelError as exc:
+            raise ServerError(str(exc)) from None
+        self.doubts: dict[int, list[dict[str, Any]]] = {}  # frame -> the run's review points there
+        for p in points:
+            self.doubts.setdefault(p.frame, []).append({"ids": list(p.ids), "kind": p.kind, "note": p.note})
         self.store = store if store is not None else AnnotationStore.open(self.run_dir, author=author)
         self.media = media or RunMedia(self.run_dir, cache_dir=self.run_dir / "annotations" / "cache")
         self.frame_ids = sorted(self.auto)
@@ -275,6 +284,7 @@ class AnnotateServer:
             "media_problem": self.media.problem,
             "rev": rev,
             "reviewed": reviewed,
+            "doubts": sorted(set(self.doubts) & self._frame_set),
             "author": self.author,
             "rerun": self.rerun.status() if self.rerun is not None else None,
         }
@@ -306,6 +316,7 @@ class AnnotateServer:
                 "gt": self._people_json(gt, {int(i): v for i, v in who.items()}),
                 "auto": self._people_json(auto),
                 "flags": flags.get(k, {"fp": [], "fn": [], "switch": []}),
+                "doubts": self.doubts.get(k, []),
                 "flags_rev": flags_rev,
                 "trails": self._trails(k, gt.robot_pose or (auto.robot_pose if auto else None)),
             }
@@ -410,14 +421,16 @@ class AnnotateServer:
         return out
 
     def next_frame(self, kind: Any, start: Any, direction: Any, wait: Any = None) -> dict[str, Any]:
-        if kind not in ("flag", "unreviewed"):
-            raise ApiError(400, f"kind must be 'flag' or 'unreviewed', got {kind!r}")
+        if kind not in ("flag", "unreviewed", "doubt"):
+            raise ApiError(400, f"kind must be 'flag', 'unreviewed' or 'doubt', got {kind!r}")
         k = self.check_frame(start)
         step = 1 if direction in (None, "", "1", 1) else -1 if direction in ("-1", -1) else 0
         if step == 0:
             raise ApiError(400, f"dir must be 1 or -1, got {direction!r}")
         if kind == "flag":
             pool = set(self.flags(wait_s=_wait_param(wait) or 5.0)[0])
+        elif kind == "doubt":
+            pool = set(self.doubts) & self._frame_set
         else:
             with self.lock:
                 pool = self._frame_set - self.reviewed()

@@ -349,3 +349,41 @@ def test_a_large_run_serves_frames_and_edits(tmp_path: Path, make_run: Callable[
             assert 1000 in m["flagged"]
     finally:
         state.close()
+
+
+def test_doubts_are_the_runs_review_points(sim_run: Path, run_copy: Path) -> None:
+    """The run's review.jsonl: its frames in the meta, its notes on each frame, ``next?kind=doubt`` from
+    one to the next; a broken file stops the server with one line."""
+    from studio.annotate.server import ServerError
+    from studio.labels import ReviewPoint, read_labels, read_review, review_points, write_review
+
+    # the real run's points are the labels' own
+    made = read_review(sim_run / "review.jsonl")
+    assert made == review_points(read_labels(sim_run / "labels.jsonl").frames)
+    stamps = {f.frame: f.stamp_ns for f in read_labels(run_copy / "labels.jsonl").frames}
+    points = [
+        ReviewPoint(7, stamps[7], (1,), "gap", "track 1 seen again after 1.2 s: the same person?"),
+        ReviewPoint(20, stamps[20], (1, 2), "encounter", "tracks 1 and 2 came within 0.31 m: ..."),
+        ReviewPoint(20, stamps[20], (3,), "start", "track 3 begins: is it someone labelled before?"),
+    ]
+    write_review(run_copy / "review.jsonl", points)
+    state = AnnotateServer(run_copy, author="tester")
+    try:
+        with TestClient(create_app(state)) as client:
+            assert client.get("/api/meta").json()["doubts"] == [7, 20]
+            assert client.get("/api/next?kind=doubt&start=0").json() == {"frame": 7, "remaining": 2}
+            assert client.get("/api/next?kind=doubt&start=7").json()["frame"] == 20
+            assert client.get("/api/next?kind=doubt&start=20").json()["frame"] is None
+            assert client.get("/api/next?kind=doubt&start=20&dir=-1").json()["frame"] == 7
+            doubts = client.get("/api/frame/20").json()["doubts"]
+            assert [d["ids"] for d in doubts] == [[1, 2], [3]]
+            assert doubts[0]["kind"] == "encounter"
+            assert client.get("/api/frame/8").json()["doubts"] == []
+            r = client.get("/api/next?kind=doubts&start=0")
+            assert r.status_code == 400
+            assert "'doubt'" in r.json()["error"]
+    finally:
+        state.close()
+    (run_copy / "review.jsonl").write_text('{"frame": 1}\n')
+    with pytest.raises(ServerError, match=r"review\.jsonl:1: not a review point"):
+        AnnotateServer(run_copy, author="tester")

@@ -33,6 +33,17 @@ def moved_server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> It
     info = json.loads((run / "run.json").read_text())
     info["recording"] = str(tmp_path / "moved" / "recording.mcap")
     (run / "run.json").write_text(json.dumps(info))
+    # two doubts the test knows (the run's own review points depend on its tracks)
+    from studio.labels import ReviewPoint, read_labels, write_review
+
+    stamps = {f.frame: f.stamp_ns for f in read_labels(run / "labels.jsonl").frames}
+    write_review(
+        run / "review.jsonl",
+        [
+            ReviewPoint(30, stamps[30], (1,), "gap", "track 1 seen again after 1.4 s: the same person?"),
+            ReviewPoint(45, stamps[45], (1, 2), "encounter", "tracks 1 and 2 came within 0.33 m: ..."),
+        ],
+    )
     state = AnnotateServer(run, author="keys")
     assert state.media.problem
     with serve_in_thread(state) as url:
@@ -103,6 +114,17 @@ def test_keyboard_flow_without_recording(moved_server: str) -> None:
             page.evaluate("() => { location.hash = '#40'; }")
             expect(page.locator("#frameno")).to_have_value("40")
             expect(page.locator("#history li")).to_have_count(1)
+            expect(page.locator("#doubt-note")).to_be_hidden()
+
+            # C / Shift+C: the next / previous doubt, its note above the views
+            page.keyboard.press("c")
+            expect(page.locator("#frameno")).to_have_value("45")
+            expect(page.locator("#doubt-note")).to_contain_text("tracks 1 and 2 came within 0.33 m")
+            assert page.evaluate("S.sel") == 1  # the first track in doubt is selected
+            page.keyboard.press("Shift+C")
+            expect(page.locator("#frameno")).to_have_value("30")
+            expect(page.locator("#doubt-note")).to_contain_text("track 1 seen again after 1.4 s")
+            expect(page.locator("#status")).to_contain_text("doubt frame 30 · 2 doubt frames in all")
 
             # polling asks for the small state, not the whole run's meta
             urls.clear()

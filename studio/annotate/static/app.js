@@ -32,6 +32,7 @@ async function loadMeta() {
   S.frames = S.meta.frames;
   S.rev = S.meta.rev;
   S.reviewed = new Set(S.meta.reviewed);
+  S.doubts = new Set(S.meta.doubts || []);
   $("run").textContent = S.meta.run;
   $("nframes").textContent = `/ ${S.frames[S.frames.length - 1]}`;
   $("frameno").max = S.frames[S.frames.length - 1];
@@ -70,6 +71,9 @@ async function loadFrame(idx, { keepSel = true } = {}) {
   S.rev = Math.max(S.rev, data.rev);
   if (!keepSel || changed) { if (S.sel !== null && !data.gt.some((p) => p.id === S.sel)) S.sel = keepSel ? S.sel : null; }
   if (data.reviewed) S.reviewed.add(n); else S.reviewed.delete(n);
+  const doubts = data.doubts || [], dn = $("doubt-note");
+  dn.textContent = doubts.length ? "to check: " + doubts.map((q) => q.note).join(" · ") : "";
+  dn.hidden = !doubts.length;
   render();
   loadHistory();
   if (S.meta.rerun && S.meta.rerun.can_follow && $("follow").checked && changed) {
@@ -206,10 +210,14 @@ const ops = {
 async function jump(kind, dir = 1) {
   try {
     const r = await api(`/api/next?kind=${kind}&start=${frameNo()}&dir=${dir}`);
-    if (r.frame === null) { status(`no ${dir > 0 ? "further" : "earlier"} ${kind === "flag" ? "flagged" : "unreviewed"} frame`, ""); return; }
+    const what = { flag: "flagged", unreviewed: "unreviewed", doubt: "doubt" }[kind];
+    if (r.frame === null) { status(`no ${dir > 0 ? "further" : "earlier"} ${what} frame`, ""); return; }
     await loadFrame(S.frames.indexOf(r.frame));
-    const what = kind === "flag" ? "flagged" : "unreviewed";
-    status(`${what} frame ${r.frame} · ${r.remaining} ${what} in all`, "");
+    if (kind === "doubt" && S.data && S.data.frame === r.frame) {  // select the first track in doubt
+      const ids = (S.data.doubts[0] || { ids: [] }).ids.filter((i) => S.data.gt.some((p) => p.id === i));
+      if (ids.length) { S.sel = ids[0]; render(); }
+    }
+    status(`${what} frame ${r.frame} · ${r.remaining} ${what} frames in all`, "");
   } catch (e) { status(e.message, "bad"); }
 }
 
@@ -395,6 +403,7 @@ function drawTimeline() {
   S.frames.forEach((f, i) => {
     if (S.reviewed.has(f)) { ctx.fillStyle = "#2f7d57"; ctx.fillRect(x(i), 0, bw, 7); }
     if (S.flagged.has(f)) { ctx.fillStyle = "#d04545"; ctx.fillRect(x(i), 7, bw, 7); }
+    else if (S.doubts && S.doubts.has(f)) { ctx.fillStyle = "#d9a13b"; ctx.fillRect(x(i), 7, bw, 7); }
   });
   ctx.fillStyle = "#fff"; ctx.fillRect(x(S.idx), 0, Math.max(2, bw), 14);
 }
@@ -475,6 +484,7 @@ function setupControls() {
   $("frameno").addEventListener("change", () => { const i = S.frames.indexOf(parseInt($("frameno").value, 10)); if (i >= 0) loadFrame(i); else status("no such frame", "bad"); });
   $("next-flag").onclick = () => jump("flag");
   $("next-unrev").onclick = () => jump("unreviewed");
+  $("next-doubt").onclick = () => jump("doubt");
   $("reviewed").onclick = () => ops.review(!(S.data && S.data.reviewed));
   $("undo").onclick = () => undoRedo("undo");
   $("redo").onclick = () => undoRedo("redo");
@@ -500,6 +510,7 @@ function setupControls() {
       ArrowRight: () => loadFrame(S.idx + step), ArrowLeft: () => loadFrame(S.idx - step), d: () => loadFrame(S.idx + 1), a: () => loadFrame(S.idx - 1),
       Home: () => loadFrame(0), End: () => loadFrame(S.frames.length - 1),
       f: () => jump("flag", 1), F: () => jump("flag", -1), u: () => jump("unreviewed", 1), U: () => jump("unreviewed", -1),
+      c: () => jump("doubt", 1), C: () => jump("doubt", -1),
       r: () => ops.review(!(S.data && S.data.reviewed)),
       Enter: async () => { if (await ops.review(true)) loadFrame(S.idx + 1); }, // stay on a refused frame
       n: () => { S.addMode = !S.addMode; render(); }, Delete: ops.del, Backspace: ops.del,
