@@ -18,7 +18,9 @@ switch (frame, ground-truth id, range from the robot, distance to the nearest ot
 before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
 person had gone unmatched for more than 1 s; or *other*), marks the switches that were *undone* (the
 person went from track A to B and back to A within 3 s: two tracks exchanged people for a moment)
-and counts the kinds and the undone. ``--image-period``
+and the switches *to check* (within 2 s of a review point of ``review.jsonl`` on the track before or after,
+:mod:`studio.labels.review`: what a person checking the doubts the run lists would find), and counts the
+kinds, the undone, the switches to check and the review points per minute. ``--image-period``
 emulates another image detector period from a pass one that ran the detector on every frame (stored
 separately). ``--laser-again`` runs the current laser detector again on the stored scans (in the base frame,
 so positions differ from ``studio label``'s in the last digits): a laser detector change measured in a minute
@@ -330,15 +332,20 @@ def switch_kind(near_m: float, gap_s: float) -> str:
 
 
 UNDONE_S = 3.0  # a switch from track A to B undone (B back to A) within this many seconds
+CHECK_S = 2.0  # a switch this near a review point of the track before or after it is one to check
 
 
-def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int]:
-    """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, and how
-    many of them come in *undone* pairs: the person went from track A to track B and back to A within
-    :data:`UNDONE_S` seconds (two tracks exchanged people for a moment; each such pair is two
-    switches)."""
+def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int, int, int]:
+    """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, how
+    many of them come in *undone* pairs (the person went from track A to track B and back to A within
+    :data:`UNDONE_S` seconds: two tracks exchanged people for a moment; each such pair is two switches),
+    how many are *to check* (within :data:`CHECK_S` of a review point on track A or B, as ``studio
+    label`` lists them in ``review.jsonl``) and how many review points there are."""
     from studio.evaluate.align import align_frames
     from studio.evaluate.clear import ClearMOT
+    from studio.labels import review_points
+
+    points = review_points(labels)
 
     gt_frames = {f.frame: f for f in gt.frames}
     seconds = frame_seconds(gt)
@@ -361,10 +368,16 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             gap_s = np.inf if before < 0 else seconds[fe.frame] - seconds[before]
             kind = switch_kind(near, gap_s)
             kinds[kind] += 1
+            t = seconds[fe.frame]
+            check = any(
+                {was, match.get(g)} & set(p.ids) and abs(p.stamp_ns / 1e9 - t) <= CHECK_S
+                for p in points
+            )
+            kinds["to check"] += check
             text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its last match, frame {before}) "
-                f"-> {match.get(g)} [{kind}]"
+                f"-> {match.get(g)} [{kind}]" + (" to check" if check else "")
             )
             events.append((seconds[fe.frame], g, was, match.get(g), text))
         for g, p in match.items():
@@ -380,7 +393,7 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
                 break
     for i, (*_, text) in enumerate(events):
         print(text + (" undone" if i in undone else ""))
-    return kinds, len(undone)
+    return kinds, len(undone), kinds.pop("to check", 0), len(points)
 
 
 HANDOVER_S = 3.0  # a track matched to another person within this many seconds of its last match
@@ -494,7 +507,7 @@ def main() -> None:
         options = replace(options, tracking=replace(options.tracking, **dict.fromkeys(args.without)))
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
-    total_undone = 0
+    total_undone = total_check = total_points = 0
     runs: list[Run] = []
     for seed in args.seeds:
         rec = recording(
@@ -541,10 +554,15 @@ def main() -> None:
             if args.likelihood:
                 compare_likelihood(seen, oracle_tracker(fused, gt))
             if args.switches:
-                kinds, undone = switches(labels, ev, gt)
+                kinds, undone, check, n_points = switches(labels, ev, gt)
                 total += kinds
                 total_undone += undone
-                print("  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {undone} undone")
+                total_check += check
+                total_points += n_points
+                print(
+                    "  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {undone} undone; "
+                    f"{check} to check, review points {n_points} ({n_points / minutes:.1f}/min)"
+                )
             if args.handovers:
                 kinds = handovers(ev, gt)
                 total_handovers += kinds
@@ -558,6 +576,11 @@ def main() -> None:
             "all: "
             + ", ".join(f"{k} {n}" for k, n in sorted(total.items()))
             + f"; {total_undone} of them undone (A to B and back within {UNDONE_S:g} s)"
+        )
+        minutes = sum(r.minutes for r in runs)
+        print(
+            f"all: {total_check} of {sum(total.values())} switches to check (within {CHECK_S:g} s of a "
+            f"review point on their tracks); {total_points} review points ({total_points / minutes:.1f}/min)"
         )
 
 
