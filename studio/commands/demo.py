@@ -53,4 +53,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nrun directory: {out}  (labels.yaml, labels.jsonl, boxes_coco.json, metrics.json, ...)")
     if info.get("rrd"):
         print(f"open it in the viewer:  studio view {out}   (or: studio view {out} --web)")
+    n = c.get("review_points", 0)
+    print(
+        f"check and correct it:   studio annotate {out}   (key c: the {n} moment{'s' * (n != 1)} where "
+        "identities are worth checking, review.jsonl)"
+    )
     return 0

@@ -14,7 +14,7 @@ import pytest
 from bench_loader import load_bench
 
 from studio.io import load_rig
-from studio.labels import read_labels
+from studio.labels import read_labels, read_review
 from studio.pipeline import LabelOptions
 from studio.pipeline.label import label_recording
 from studio.pipeline.perceive import perceive
@@ -56,6 +56,12 @@ def test_laser_only_labels_on_a_real_bag(shared_data: Path, tmp_path: Path) -> N
             tracks.setdefault(p.id, []).append((p.x, p.y))
     travel = max(float(np.ptp(np.array(t), axis=0).max()) for t in tracks.values())
     assert travel > 2.0
+    # the moments to check name tracks of their frames, and the CLI says how many there are
+    points = read_review(run / "review.jsonl")
+    frames = {f.frame: {p.id for p in f.people} for f in labels}
+    assert info["counts"]["review_points"] == len(points)
+    assert all(set(p.ids) <= frames[p.frame] for p in points)
+    assert not points or f"{len(points)} moment" in res.stdout
 
 
 def test_corrupt_bag_is_one_clear_error_and_writes_nothing(shared_data: Path, tmp_path: Path) -> None:
