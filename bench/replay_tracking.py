@@ -370,8 +370,7 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             kinds[kind] += 1
             t = seconds[fe.frame]
             check = any(
-                {was, match.get(g)} & set(p.ids) and abs(p.stamp_ns / 1e9 - t) <= CHECK_S
-                for p in points
+                {was, match.get(g)} & set(p.ids) and abs(p.stamp_ns / 1e9 - t) <= CHECK_S for p in points
             )
             kinds["to check"] += check
             text = (
