@@ -27,6 +27,7 @@ OPS: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
     "delete": (("frame", "id"), {}),
     "set_id": (("id", "start", "end"), {"new_id": None}),
     "merge": (("ids", "start", "end"), {"into": None}),
+    "swap": (("ids", "start", "end"), {}),
     "split": (("id", "frame"), {"new_id": None, "end": None}),
     "flag": (("frame", "id"), {"occluded": None, "uncertain": None}),
     "review": (("start", "end"), {"reviewed": True}),
@@ -66,7 +67,7 @@ class Touch:
     Attributes:
         seq: sequence number of the log record.
         how: ``edit`` (added/moved by hand in this frame), ``propagate`` (moved by a propagated move),
-            ``identity`` (set_id/merge/split), ``flag`` or ``delete``.
+            ``identity`` (set_id/merge/split/swap), ``flag`` or ``delete``.
     """
 
     seq: int
@@ -171,6 +172,13 @@ def normalize_op(op: Any, *, limits: bool = True) -> dict[str, Any]:
         out["ids"] = [_check_id(i, "op 'merge': each of 'ids'", False) for i in ids]
         if len(set(out["ids"])) != len(out["ids"]):
             raise AnnotationError(f"op 'merge': 'ids' has duplicates: {out['ids']}")
+    if name == "swap":
+        ids = out["ids"]
+        if not isinstance(ids, list | tuple) or len(ids) != 2:
+            raise AnnotationError(f"op 'swap': 'ids' must be a list of two ids, got {ids!r}")
+        out["ids"] = [_check_id(i, "op 'swap': each of 'ids'", False) for i in ids]
+        if out["ids"][0] == out["ids"][1]:
+            raise AnnotationError(f"op 'swap': 'ids' are the same id twice: {out['ids']}")
     return out
 
 
@@ -448,6 +456,27 @@ class Timeline:
         if op["into"] is None:
             op["into"] = self.free_id()
         return op, self._relabel(frames, op["ids"], op["into"], seq, "merge")
+
+    def _plan_swap(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
+        """Each of the two ids takes the other's in every frame of the range (where only one of them is
+        there, it takes the other's id): two tracks that exchanged people at an encounter, put right."""
+        frames = self._range(op)
+        a, b = op["ids"]
+        self._need_present(frames, [a, b], "swap")
+        other = {a: b, b: a}
+        changes: dict[int, FrameState] = {}
+        for i in frames:
+            if not {a, b} & set(self.ids_at(i)):
+                continue  # without parsing frames the ids are not in
+            s = self.state(i)
+            present = [k for k in (a, b) if k in s.people]
+            if not present:
+                continue
+            people = {q: p for q, p in s.people.items() if q not in other}
+            for k in present:
+                people[other[k]] = self._edited(i, s.people[k], id=other[k])
+            changes[i] = self._with(s, people=people, touched=[a, b], touch=Touch(seq, "identity"))
+        return op, changes
 
     def _plan_split(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
         frames = self._range(op, "frame", "end")

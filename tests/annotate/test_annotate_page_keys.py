@@ -121,6 +121,14 @@ def test_keyboard_flow_without_recording(moved_server: str) -> None:
             expect(page.locator("#frameno")).to_have_value("45")
             expect(page.locator("#doubt-note")).to_contain_text("tracks 1 and 2 came within 0.33 m")
             assert page.evaluate("S.sel") == 1  # the first track in doubt is selected
+            # W with no ID typed: swap it with the encounter's other track from here on
+            before = {p["id"]: p["x"] for p in _call(url, "/api/frame/50")["gt"]}
+            page.keyboard.press("w")
+            expect(page.locator("#history li").first).to_contain_text("swapped 1 ⇄ 2 (45–59)")
+            after = {p["id"]: p["x"] for p in _call(url, "/api/frame/50")["gt"]}
+            assert (after[1], after[2]) == (before[2], before[1])
+            f44 = _call(url, "/api/frame/44")  # before the scope: as the auto labels
+            assert {p["id"]: p["x"] for p in f44["gt"]} == {p["id"]: p["x"] for p in f44["auto"]}
             page.keyboard.press("Shift+C")
             expect(page.locator("#frameno")).to_have_value("30")
             expect(page.locator("#doubt-note")).to_contain_text("track 1 seen again after 1.4 s")

@@ -137,6 +137,23 @@ def test_merge(store: AnnotationStore) -> None:
     assert all(6 not in ids(store, n) for n in range(10))
 
 
+def test_swap(store: AnnotationStore, track_xy: XY) -> None:
+    # ids 1 (0..9) and 5 (3..9) exchanged people from frame 6 on; id 2 (0..4) takes id 1 where 1 is gone
+    r = store.apply({"op": "swap", "ids": [1, 5], "start": 6, "end": 9})
+    assert r.frames == [6, 7, 8, 9]
+    assert people(store, 5)[1] == pytest.approx(track_xy(1, 5))
+    assert people(store, 6)[5] == pytest.approx(track_xy(1, 6))
+    assert people(store, 6)[1] == pytest.approx(track_xy(5, 6))
+    assert store.changed_by(7)[1]["how"] == "identity"
+    r = store.apply({"op": "swap", "ids": [2, 5], "start": 0, "end": 2})  # only id 2 there: it becomes 5
+    assert r.frames == [0, 1, 2]
+    assert ids(store, 1) == [1, 5]
+    store.undo()
+    store.undo()
+    assert people(store, 6) == {1: pytest.approx(track_xy(1, 6)), 5: pytest.approx(track_xy(5, 6))}
+    assert ids(store, 1) == [1, 2]
+
+
 def test_split(store: AnnotationStore) -> None:
     r = store.apply({"op": "split", "id": 1, "frame": 6, "new_id": 9})
     assert r.op["end"] is None
@@ -202,6 +219,11 @@ ERRORS: list[tuple[dict[str, Any], str]] = [
     ({"op": "merge", "ids": [1], "into": 9, "start": 0, "end": 9}, "at least two"),
     ({"op": "merge", "ids": [1, 1], "into": 9, "start": 0, "end": 9}, "duplicates"),
     ({"op": "merge", "ids": "12", "into": 9, "start": 0, "end": 9}, "list"),
+    ({"op": "swap", "ids": [1, 1], "start": 0, "end": 9}, "same id twice"),
+    ({"op": "swap", "ids": [1, 2, 5], "start": 0, "end": 9}, "two ids"),
+    ({"op": "swap", "ids": 1, "start": 0, "end": 9}, "two ids"),
+    ({"op": "swap", "ids": [2, 7], "start": 5, "end": 9}, "no id 2 or 7 in frames 5..9"),
+    ({"op": "swap", "ids": [1, 5], "start": 0, "end": 10}, "unknown end 10"),
     ({"op": "split", "id": 2, "frame": 6, "new_id": 7}, "no id 2 in frames 6..9"),
     ({"op": "split", "id": 1, "frame": 5, "end": 2, "new_id": 9}, "end 2 comes before frame 5"),
     ({"op": "split", "id": 1, "frame": 5, "end": 12, "new_id": 9}, "unknown end 12"),

@@ -94,7 +94,7 @@ def random_op(rng: random.Random, s: AnnotationStore) -> dict[str, Any]:
     present = [p.id for p in s.frame(n).people]
     k = rng.choice(present) if present else rng.randrange(4)
     a, b = sorted(rng.sample(range(s.num_frames), 2))
-    kind = rng.choice(["add", "move", "move", "delete", "set_id", "merge", "split", "flag", "review"])
+    kind = rng.choice(["add", "move", "move", "delete", "set_id", "merge", "swap", "split", "flag", "review"])
     xy = {"x": rng.uniform(-5, 5), "y": rng.uniform(-5, 5)}
     return {
         "add": {"op": "add", "frame": n, "id": rng.randrange(12), **xy},
@@ -114,6 +114,7 @@ def random_op(rng: random.Random, s: AnnotationStore) -> dict[str, Any]:
             "start": a,
             "end": b,
         },
+        "swap": {"op": "swap", "ids": rng.sample(range(8), 2), "start": a, "end": b},
         "split": {"op": "split", "id": k, "frame": n, "new_id": None, "end": rng.choice([None, b])},
         "flag": {
             "op": "flag",

@@ -107,6 +107,7 @@ function describeOp(op) {
   if (o === "delete") return `deleted ${op.id}`;
   if (o === "set_id") return `ID ${op.id} → ${op.new_id} (${op.start}–${op.end})`;
   if (o === "merge") return `merged ${op.ids.join("+")} → ${op.into} (${op.start}–${op.end})`;
+  if (o === "swap") return `swapped ${op.ids.join(" ⇄ ")} (${op.start}–${op.end})`;
   if (o === "split") return `split ${op.id} at ${op.frame} → ${op.new_id}`;
   if (o === "flag") return `flagged ${op.id}${op.occluded ? " occluded" : ""}${op.uncertain ? " uncertain" : ""}`;
   if (o === "review") return `${op.reviewed === false ? "unreviewed" : "reviewed"} ${op.start}–${op.end}`;
@@ -200,6 +201,17 @@ const ops = {
     send({ op: "set_id", id: S.sel, new_id: id, start, end }).then((r) => { if (r) { S.sel = id; render(); } }); },
   merge() { if (S.sel === null) return; const other = readId(); if (other === null) return; const [start, end] = scopeRange();
     send({ op: "merge", ids: [S.sel, other], into: S.sel, start, end }); },
+  swap() {
+    if (S.sel === null) return;
+    let other = null;
+    if ($("new-id").value.trim() === "") {  // at an encounter doubt: its other track
+      const d = ((S.data && S.data.doubts) || []).find((q) => q.ids.length === 2 && q.ids.includes(S.sel));
+      if (d) other = d.ids.find((i) => i !== S.sel);
+    }
+    if (other === null && (other = readId()) === null) return;
+    const [start, end] = scopeRange();
+    send({ op: "swap", ids: [S.sel, other], start, end });
+  },
   split() { if (S.sel === null) return; const v = $("new-id").value.trim(); const op = { op: "split", id: S.sel, frame: frameNo() };
     if (/^\d+$/.test(v)) op.new_id = parseInt(v, 10); send(op); },
   del() { if (S.sel === null) return; const id = S.sel; S.sel = null; send({ op: "delete", frame: frameNo(), id }); },
@@ -489,7 +501,7 @@ function setupControls() {
   $("undo").onclick = () => undoRedo("undo");
   $("redo").onclick = () => undoRedo("redo");
   $("add-mode").onclick = () => { S.addMode = !S.addMode; render(); };
-  $("set-id").onclick = ops.setId; $("merge").onclick = ops.merge; $("split").onclick = ops.split; $("delete").onclick = ops.del;
+  $("set-id").onclick = ops.setId; $("merge").onclick = ops.merge; $("swap").onclick = ops.swap; $("split").onclick = ops.split; $("delete").onclick = ops.del;
   $("occluded").onchange = ops.flag; $("uncertain").onchange = ops.flag;
   $("timeline").addEventListener("click", (e) => { const r = e.target.getBoundingClientRect(); loadFrame(Math.floor(((e.clientX - r.left) / r.width) * S.frames.length)); });
   window.addEventListener("resize", render);
@@ -514,7 +526,7 @@ function setupControls() {
       r: () => ops.review(!(S.data && S.data.reviewed)),
       Enter: async () => { if (await ops.review(true)) loadFrame(S.idx + 1); }, // stay on a refused frame
       n: () => { S.addMode = !S.addMode; render(); }, Delete: ops.del, Backspace: ops.del,
-      i: () => $("new-id").focus(), m: ops.merge, s: ops.split, p: () => { $("propagate").checked = !$("propagate").checked; },
+      i: () => $("new-id").focus(), m: ops.merge, w: ops.swap, s: ops.split, p: () => { $("propagate").checked = !$("propagate").checked; },
       Escape: () => { S.sel = null; S.addMode = false; render(); }, "+": () => { S.scale *= 1.2; renderBev(); }, "-": () => { S.scale /= 1.2; renderBev(); },
       0: () => { fitBev(true); renderBev(); },
     };
