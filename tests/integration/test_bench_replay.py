@@ -70,9 +70,10 @@ def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.Capt
         )
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, undone = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, undone, check, n_points = load_bench("replay_tracking").switches(pred, ev, truth)
     assert kinds == {"encounter": 4, "other": 2}
     assert undone == 4
+    assert (check, n_points) == (0, 0)  # tracks 0.5 m apart that begin with the run: nothing to check
     out = capsys.readouterr().out
     assert (
         "frame    15 person   3 at  6.5 m, nearest other 0.50 m: "
@@ -100,7 +101,7 @@ def test_switches_names_the_track_clear_mot_kept_not_the_nearest(capsys: pytest.
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
     assert ev.frames[4].matches[0][1] == 2  # the detection matching
-    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, *_ = load_bench("replay_tracking").switches(pred, ev, truth)
     assert sum(kinds.values()) == 1
     out = capsys.readouterr().out
     assert (
@@ -109,10 +110,15 @@ def test_switches_names_the_track_clear_mot_kept_not_the_nearest(capsys: pytest.
     )
 
 
-@pytest.mark.parametrize(("period_ns", "kind"), [(10**8, "after a gap"), (10**9 // 30, "other")])
-def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(period_ns: int, kind: str) -> None:
+@pytest.mark.parametrize(
+    ("period_ns", "kind", "check"), [(10**8, "after a gap", 1), (10**9 // 30, "other", 0)]
+)
+def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(
+    period_ns: int, kind: str, check: int, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Person 1 goes unmatched for 15 frames, then track 2 takes them: 1.5 s at 10 Hz is a gap, 0.5 s at
-    30 Hz is not."""
+    30 Hz is not. Track 2 begins 2 s into the run at 10 Hz (a review point, so the switch is one to
+    check), 0.67 s into it at 30 Hz (no point)."""
     gt, pred = [], []
     for i in range(30):
         gt.append(_frame(i, {1: (2.0, 0.0)}, period_ns))
@@ -120,8 +126,10 @@ def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(period_ns: int, k
         pred.append(_frame(i, p, period_ns))
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, _, to_check, n_points = load_bench("replay_tracking").switches(pred, ev, truth)
     assert kinds == {kind: 1}
+    assert to_check == n_points == check
+    assert ("to check" in capsys.readouterr().out) == bool(check)
 
 
 def test_switches_reads_the_predictions_as_the_evaluator_aligned_them() -> None:
@@ -132,7 +140,7 @@ def test_switches_reads_the_predictions_as_the_evaluator_aligned_them() -> None:
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
     assert ev.metrics()["id_switches"] == 1
-    kinds, _ = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, *_ = load_bench("replay_tracking").switches(pred, ev, truth)
     assert sum(kinds.values()) == 1
 
 
