@@ -84,6 +84,13 @@ class FusionConfig:
             box, 56 of 57 lay more than 0.5 m from anyone, 50 of them with nobody else in the box.
         max_range: ignore people farther than this from the camera, m.
         floor_z: height of the floor in the base frame, m.
+        head_top_z: nothing of a person is higher than this above the floor (a tall person's raised hands),
+            m. A box's top row then bounds the person's range (``BoxRange.max_range``): a box whose feet
+            are hidden (range ``none``) takes no laser person or scan cluster beyond it, times
+            ``head_top_margin``. Someone next to the robot is tall in the image and their feet are hidden
+            by its body; the laser person on their bearing may be someone 5 m behind them, whose clothes
+            the box does not show (session 70, ``docs/results.md``).
+        head_top_margin: see ``head_top_z``.
     """
 
     foot_kpt_min_score: float = 0.3
@@ -111,6 +118,8 @@ class FusionConfig:
     nearer_laser: bool = True
     max_range: float = 12.0
     floor_z: float = 0.0
+    head_top_z: float = 2.3
+    head_top_margin: float = 1.25
 
     def laser_sigmas(self, kind: NDArray[np.int64]) -> FloatArray:
         """1-σ of laser people of the given kinds (:data:`studio.detect.laser.base.KIND_PAIR` …), m."""

@@ -54,6 +54,9 @@ class BoxRange:
         range: ``(N,)`` horizontal distance camera → person, m (NaN when the image gives none).
         sigma: ``(N,)`` 1-σ of ``range``, m (inf when unknown).
         how: N strings: ``foot-row``, ``torso-size`` or ``none``.
+        max_range: ``(N,)`` the farthest the person can be, from the box's top row (the top of a head, or
+            of raised hands, at most ``FusionConfig.head_top_z`` above the floor), m (inf when the top row
+            is not above the camera).
     """
 
     u_center: FloatArray
@@ -61,6 +64,7 @@ class BoxRange:
     range: FloatArray
     sigma: FloatArray
     how: tuple[str, ...]
+    max_range: FloatArray
 
 
 def _cam_xy(camera: EquirectCamera) -> FloatArray:
@@ -129,7 +133,23 @@ def box_ranges(
                 r = cfg.torso_length / dt
                 if r <= cfg.max_range:
                     rng[i], sig[i], how[i] = r, max(cfg.torso_rel_sigma * r, 0.1), "torso-size"
-    return BoxRange(uc, az, rng, sig, tuple(how))
+    return BoxRange(uc, az, rng, sig, tuple(how), _top_bound(camera, uc, boxes[:, 1] if n else uc, cfg))
+
+
+def _top_bound(camera: EquirectCamera, u: FloatArray, v_top: FloatArray, cfg: FusionConfig) -> FloatArray:
+    """The farthest (horizontal range from the camera, m) a person can be whose box's top row is ``v_top``:
+    nothing of them is higher than ``head_top_z``, so a top row well above the horizon means someone near
+    (``head_top_margin`` for the top row's error). Inf where the top row is not above the camera."""
+    out = np.full(len(u), np.inf)
+    if not len(u):
+        return out
+    rays = camera.bearing_base(np.stack([np.asarray(u) % camera.width, np.asarray(v_top)], axis=-1))
+    tan_el = rays[:, 2] / np.maximum(np.hypot(rays[:, 0], rays[:, 1]), 1e-9)
+    rise = cfg.floor_z + cfg.head_top_z - float(camera.pose.t[2])
+    up = tan_el > 1e-3
+    if rise > 0:
+        out[up] = (rise / tan_el[up]) * cfg.head_top_margin
+    return out
 
 
 def points_columns(camera: EquirectCamera, points_base: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -257,8 +277,9 @@ def fuse_frame(
                     ok = inside & (np.abs(r_l - br.range[i]) <= gate)
                     ok &= ~static | (np.abs(dr) <= cfg.static_gate_sigma)
                     c = off**2 + dr**2
-                else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first
-                    ok = inside & (r_l <= cfg.max_range)
+                else:  # feet hidden (e.g. by the robot body): the laser decides, nearest first, but not
+                    # beyond what the box's top row allows (a person that near is tall in the image)
+                    ok = inside & (r_l <= min(cfg.max_range, br.max_range[i]))
                     c = off**2 + r_l / cfg.max_range
                 if cfg.static_behind > 0 and len(u_p) and (ok & static).any():
                     # a static detection behind moving scan points in the box: the wall between their legs
@@ -317,7 +338,7 @@ def fuse_frame(
                 sel = np.abs(off) <= cfg.cluster_core_frac
                 if np.isfinite(br.range[i]):
                     sel &= np.abs(r_p - br.range[i]) <= gate
-                sel &= r_p <= cfg.max_range
+                sel &= r_p <= min(cfg.max_range, br.max_range[i])
                 idx = np.flatnonzero(sel)
                 if len(idx) >= cfg.cluster_min_points:
                     order = idx[np.argsort(r_p[idx])]

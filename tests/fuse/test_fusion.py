@@ -125,6 +125,33 @@ def test_feet_hidden_by_the_robot_the_laser_decides() -> None:
     np.testing.assert_allclose(obs.xy[fused[0]], [0.9, 0.3])
 
 
+def test_a_box_with_hidden_feet_takes_nobody_beyond_its_top_row() -> None:
+    # someone 0.7 m away whom only head and shoulders keypoints describe (no range cue), the laser missing
+    # their legs, and someone 5 m behind on the same bearing: the box is not that one's
+    near, far = (0.75, 0.1), (5.0, 0.7)
+    box, kp = person(*near, feet=False)
+    kp[11:13] = 0.0  # hips not seen either: no torso-size cue
+    d = dets((box, kp))
+    br = box_ranges(d, CAM)
+    assert br.how == ("none",)
+    assert np.hypot(0.75 - 0.1, 0.1) < br.max_range[0] < 2.0
+    obs = fuse_frame(d, laser(far), camera=CAM)
+    assert sorted(obs.source) == ["laser"]  # the far person stays the laser's, without the near one's box
+    # the scan cluster of the near person's legs is the box's
+    obs = fuse_frame(d, laser(far), camera=CAM, scan_points=np.r_[legs(*near), legs(*far)])
+    k = obs.source.index("fused")
+    assert obs.how[k] == "scan-cluster"
+    assert np.hypot(*(obs.xy[k] - near)) < 0.15
+    # someone at 3 m with raised hands (box top 2.3 m above the floor) is still within the bound
+    box3, kp3 = person(3.0, 0.5, feet=False, height=2.3)
+    kp3[11:13] = 0.0
+    assert box_ranges(dets((box3, kp3)), CAM).max_range[0] > np.hypot(2.9, 0.5)
+    assert fuse_frame(dets((box3, kp3)), laser((3.0, 0.5)), camera=CAM).source == ("fused",)
+    # a camera above everyone's head: no bound
+    high = EquirectCamera(W, H, Pose3.from_xyz_rpy(0.0, 0.0, 2.5))
+    assert np.isinf(box_ranges(dets(person(2.0, 0.0)), high).max_range[0])
+
+
 def test_unconfirmed_laser_detections_are_kept_as_laser() -> None:
     obs = fuse_frame(dets(person(3.0, 1.0)), laser((3.0, 1.0), (-2.0, -2.0)), camera=CAM)
     assert sorted(obs.source) == ["fused", "laser"]
