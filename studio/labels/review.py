@@ -13,7 +13,7 @@ found from the labels alone (no ground truth, no tracker internals), so a run li
   labelled under another identity?
 
 Points of one track less than ``merge_s`` apart are one point (the first). Measured on the simulated
-``moving`` seeds 1–70 (session 70, docs/results.md; ``bench/replay_tracking.py --switches``): 48 of the 51
+``moving`` seeds 1–70 (session 70, docs/results.md; ``bench/replay_tracking.py --switches``): 46 of the 49
 identity switches lie within 2 s of a point on one of their two tracks, with 7.6 points per minute of
 recording (the same points moved 6 s later: 7); laser only, seeds 1–12: 51 of 55 at 7.8 per minute.
 
