@@ -20,7 +20,7 @@ Endpoints::
     POST /api/undo, /api/redo           {"base_rev": r, "client": "..."}
     GET  /api/history?frame=&limit=     the corrections log, newest first
     GET  /api/metrics                   auto labels vs ground truth on the reviewed frames
-    GET  /api/next?kind=flag|unreviewed|doubt&from=n&dir=1|-1   (doubt: the run's review.jsonl)
+    GET  /api/next?kind=flag|unreviewed|doubt&from=n&dir=1|-1   (doubt: review.jsonl's, unreviewed)
     GET  /api/rerun                     the Rerun link's state; POST /api/rerun/time {"frame": n}
 """
 
@@ -429,8 +429,9 @@ class AnnotateServer:
             raise ApiError(400, f"dir must be 1 or -1, got {direction!r}")
         if kind == "flag":
             pool = set(self.flags(wait_s=_wait_param(wait) or 5.0)[0])
-        elif kind == "doubt":
-            pool = set(self.doubts) & self._frame_set
+        elif kind == "doubt":  # the ones not marked reviewed yet: checked doubts are done
+            with self.lock:
+                pool = (set(self.doubts) & self._frame_set) - self.reviewed()
         else:
             with self.lock:
                 pool = self._frame_set - self.reviewed()

@@ -375,6 +375,9 @@ def test_doubts_are_the_runs_review_points(sim_run: Path, run_copy: Path) -> Non
             assert client.get("/api/next?kind=doubt&start=7").json()["frame"] == 20
             assert client.get("/api/next?kind=doubt&start=20").json()["frame"] is None
             assert client.get("/api/next?kind=doubt&start=20&dir=-1").json()["frame"] == 7
+            # a doubt whose frame was marked reviewed is checked off
+            assert op(client, {"op": "review", "start": 7, "end": 7}).status_code == 200
+            assert client.get("/api/next?kind=doubt&start=0").json() == {"frame": 20, "remaining": 1}
             doubts = client.get("/api/frame/20").json()["doubts"]
             assert [d["ids"] for d in doubts] == [[1, 2], [3]]
             assert doubts[0]["kind"] == "encounter"

@@ -222,7 +222,7 @@ const ops = {
 async function jump(kind, dir = 1) {
   try {
     const r = await api(`/api/next?kind=${kind}&start=${frameNo()}&dir=${dir}`);
-    const what = { flag: "flagged", unreviewed: "unreviewed", doubt: "doubt" }[kind];
+    const what = { flag: "flagged", unreviewed: "unreviewed", doubt: "unreviewed doubt" }[kind];
     if (r.frame === null) { status(`no ${dir > 0 ? "further" : "earlier"} ${what} frame`, ""); return; }
     await loadFrame(S.frames.indexOf(r.frame));
     if (kind === "doubt" && S.data && S.data.frame === r.frame) {  // select the first track in doubt
