@@ -404,32 +404,36 @@ class Timeline:
         people = {q: p for q, p in s.people.items() if q != k}
         return op, {i: self._with(s, people=people, touched=[k], touch=Touch(seq, "delete"))}
 
-    def _relabel(
-        self, frames: range, old_ids: Sequence[int], new_id: int, seq: int, what: str
-    ) -> dict[int, FrameState]:
+    def _relabel(self, frames: range, mapping: dict[int, int], seq: int, what: str) -> dict[int, FrameState]:
+        """Every id of ``mapping`` present in the frames takes the id it maps to (ids mapping to one id must
+        not share a frame; an id taken by someone outside the mapping is an error)."""
         changes: dict[int, FrameState] = {}
-        olds = set(old_ids)
         for i in frames:
             ids_i = self.ids_at(i)
-            if not any(k in ids_i for k in old_ids):
+            if not any(k in ids_i for k in mapping):
                 continue  # without parsing frames the ids are not in
             s = self.state(i)
-            present = [k for k in old_ids if k in s.people]
+            present = [k for k in mapping if k in s.people]
             if not present:
                 continue
             n = self.numbers[i]
-            if len(present) > 1:
-                raise AnnotationError(
-                    f"{what}: ids {present} are both in frame {n}; they cannot be one person"
-                )
-            (k,) = present
-            if k == new_id:
+            for new in {mapping[k] for k in present}:
+                same = [k for k in present if mapping[k] == new]
+                if len(same) > 1:
+                    raise AnnotationError(
+                        f"{what}: ids {same} are both in frame {n}; they cannot be one person"
+                    )
+            moved = [k for k in present if mapping[k] != k]
+            if not moved:
                 continue
-            if new_id in s.people and new_id not in olds:
-                raise AnnotationError(f"{what}: id {new_id} is already in frame {n} where id {k} is")
-            people = {q: p for q, p in s.people.items() if q != k}
-            people[new_id] = self._edited(i, s.people[k], id=new_id)
-            changes[i] = self._with(s, people=people, touched=[k, new_id], touch=Touch(seq, "identity"))
+            for k in moved:
+                if mapping[k] in s.people and mapping[k] not in mapping:
+                    raise AnnotationError(f"{what}: id {mapping[k]} is already in frame {n} where id {k} is")
+            people = {q: p for q, p in s.people.items() if q not in moved}
+            for k in moved:
+                people[mapping[k]] = self._edited(i, s.people[k], id=mapping[k])
+            touched = list(dict.fromkeys(x for k in moved for x in (k, mapping[k])))
+            changes[i] = self._with(s, people=people, touched=touched, touch=Touch(seq, "identity"))
         return changes
 
     def _need_present(self, frames: range, ids: Sequence[int], what: str) -> None:
@@ -448,14 +452,14 @@ class Timeline:
             op["new_id"] = self.free_id()
         if op["new_id"] == k:
             raise AnnotationError(f"set_id: new_id equals id ({k})")
-        return op, self._relabel(frames, [k], op["new_id"], seq, "set_id")
+        return op, self._relabel(frames, {k: op["new_id"]}, seq, "set_id")
 
     def _plan_merge(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
         frames = self._range(op)
         self._need_present(frames, op["ids"], "merge")
         if op["into"] is None:
             op["into"] = self.free_id()
-        return op, self._relabel(frames, op["ids"], op["into"], seq, "merge")
+        return op, self._relabel(frames, dict.fromkeys(op["ids"], op["into"]), seq, "merge")
 
     def _plan_swap(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
         """Each of the two ids takes the other's in every frame of the range (where only one of them is
@@ -463,20 +467,7 @@ class Timeline:
         frames = self._range(op)
         a, b = op["ids"]
         self._need_present(frames, [a, b], "swap")
-        other = {a: b, b: a}
-        changes: dict[int, FrameState] = {}
-        for i in frames:
-            if not {a, b} & set(self.ids_at(i)):
-                continue  # without parsing frames the ids are not in
-            s = self.state(i)
-            present = [k for k in (a, b) if k in s.people]
-            if not present:
-                continue
-            people = {q: p for q, p in s.people.items() if q not in other}
-            for k in present:
-                people[other[k]] = self._edited(i, s.people[k], id=other[k])
-            changes[i] = self._with(s, people=people, touched=[a, b], touch=Touch(seq, "identity"))
-        return op, changes
+        return op, self._relabel(frames, {a: b, b: a}, seq, "swap")
 
     def _plan_split(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
         frames = self._range(op, "frame", "end")
@@ -486,7 +477,7 @@ class Timeline:
             op["new_id"] = self.free_id()
         if op["new_id"] == k:
             raise AnnotationError(f"split: new_id equals id ({k})")
-        return op, self._relabel(frames, [k], op["new_id"], seq, "split")
+        return op, self._relabel(frames, {k: op["new_id"]}, seq, "split")
 
     def _plan_flag(self, op: dict[str, Any], seq: int) -> tuple[dict[str, Any], dict[int, FrameState]]:
         i, k = self.index(op["frame"]), op["id"]
