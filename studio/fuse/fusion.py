@@ -133,7 +133,7 @@ def box_ranges(
                 r = cfg.torso_length / dt
                 if r <= cfg.max_range:
                     rng[i], sig[i], how[i] = r, max(cfg.torso_rel_sigma * r, 0.1), "torso-size"
-    return BoxRange(uc, az, rng, sig, tuple(how), _top_bound(camera, uc, boxes[:, 1] if n else uc, cfg))
+    return BoxRange(uc, az, rng, sig, tuple(how), _top_bound(camera, uc, boxes[:, 1], cfg))
 
 
 def _top_bound(camera: EquirectCamera, u: FloatArray, v_top: FloatArray, cfg: FusionConfig) -> FloatArray:
