@@ -132,7 +132,8 @@ def test_keyboard_flow_without_recording(moved_server: str) -> None:
             page.keyboard.press("Shift+C")
             expect(page.locator("#frameno")).to_have_value("30")
             expect(page.locator("#doubt-note")).to_contain_text("track 1 seen again after 1.4 s")
-            expect(page.locator("#status")).to_contain_text("unreviewed doubt frame 30 · 2 unreviewed doubt frames")
+            status = "unreviewed doubt frame 30 · 2 unreviewed doubt frames"
+            expect(page.locator("#status")).to_contain_text(status)
 
             # polling asks for the small state, not the whole run's meta
             urls.clear()
