@@ -405,12 +405,32 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     return out
 
 
+_REGROUP_LEG_MAX_M = 0.6  # two legs farther apart are no pair (the classical detector's pair_max)
+
+
+def _regroupings(legs: FloatArray, pairs: NDArray[np.intp]) -> list[tuple[int, int, int, int]]:
+    """For every two leg pairs (``pairs``, rows of ``legs``) whose legs can also pair the other ways, each
+    such way as ``(pair a, its leg, pair b, its leg)`` of one midpoint; the other midpoint joins the other
+    two legs."""
+    out = []
+    for n, a in enumerate(pairs.tolist()):
+        for b in pairs[n + 1 :].tolist():
+            for lb in (0, 1):  # leg 0 of a with leg lb of b, leg 1 of a with the other
+                d0 = np.hypot(*(legs[a, 0] - legs[b, lb]))
+                d1 = np.hypot(*(legs[a, 1] - legs[b, 1 - lb]))
+                if max(d0, d1) <= _REGROUP_LEG_MAX_M:
+                    out += [(a, 0, b, lb), (a, 1, b, 1 - lb)]
+    return out
+
+
 def _to_odom(
     fr: FrameResult, appearance: NDArray[np.float32] | None, leg_sigma: float, view: ScanView | None = None
 ) -> Any:
     """The frame's observations in the tracking frame, with what the scanners saw (``view``); each leg
     pair's two legs follow as alternative rows (``Observations.alt_of``, 1-σ ``leg_sigma``), their
-    ``det_index`` after the observations'."""
+    ``det_index`` after the observations'; then, for every two leg pairs whose legs can pair the other ways
+    (each two legs within 0.6 m), the midpoints of those other pairings (``Observations.joins``: source
+    ``laser``, the pairs' mean covariance, the lower score, no colours)."""
     from studio.track.base import Observations
 
     obs = fr.observations
@@ -419,12 +439,26 @@ def _to_odom(
     if fr.legs is not None:
         legs[: len(fr.legs)] = fr.legs[:n]
     pairs = np.flatnonzero(np.isfinite(legs).all(axis=(1, 2)))
+    regroup = _regroupings(legs, pairs)
+    leg_row = {(int(p), side): n + 2 * k + side for k, p in enumerate(pairs) for side in (0, 1)}
     pose = fr.world_pose
     R = pose.matrix()[:2, :2]
-    xy = np.concatenate([obs.xy.reshape(-1, 2), legs[pairs].reshape(-1, 2)])
+    mid = np.array([(legs[a, la] + legs[b, lb]) / 2 for a, la, b, lb in regroup]).reshape(-1, 2)
+    xy = np.concatenate([obs.xy.reshape(-1, 2), legs[pairs].reshape(-1, 2), mid])
     xy = pose.apply(xy) if len(xy) else np.zeros((0, 2))
-    cov = np.concatenate([R @ obs.cov @ R.T, np.repeat((leg_sigma**2 * np.eye(2))[None], 2 * len(pairs), 0)])
-    alt = np.r_[np.full(n, -1), np.repeat(pairs, 2)].astype(np.int64)
+    cov_obs = R @ obs.cov @ R.T
+    cov = np.concatenate(
+        [
+            cov_obs,
+            np.repeat((leg_sigma**2 * np.eye(2))[None], 2 * len(pairs), 0),
+            np.array([(cov_obs[a] + cov_obs[b]) / 2 for a, _, b, _ in regroup]).reshape(-1, 2, 2),
+        ]
+    )
+    m = len(regroup)
+    alt = np.r_[np.full(n, -1), np.repeat(pairs, 2), np.full(m, -1)].astype(np.int64)
+    joins = np.full((len(xy), 2), -1, np.int64)
+    for k, (a, la, b, lb) in enumerate(regroup):
+        joins[len(xy) - m + k] = leg_row[a, la], leg_row[b, lb]
     app = None
     if appearance is not None:
         app = np.full((len(xy), APPEARANCE_DIM), np.nan, np.float32)
@@ -434,11 +468,17 @@ def _to_odom(
         for k, bi in enumerate(obs.box_index):
             if 0 <= bi < len(appearance) and not hidden[k]:
                 app[k] = appearance[bi]
-    source = obs.source + tuple(obs.source[k] for k in pairs for _ in range(2))
-    score = np.r_[obs.score, np.repeat(obs.score[pairs], 2)]
+    source = obs.source + tuple(obs.source[k] for k in pairs for _ in range(2)) + ("laser",) * m
+    score = np.r_[
+        obs.score, np.repeat(obs.score[pairs], 2), [min(obs.score[a], obs.score[b]) for a, _, b, _ in regroup]
+    ]
     dt = None
     if fr.obs_dt is not None and len(fr.obs_dt) == n:
-        dt = np.r_[fr.obs_dt, np.repeat(fr.obs_dt[pairs], 2)]
+        dt = np.r_[
+            fr.obs_dt,
+            np.repeat(fr.obs_dt[pairs], 2),
+            [(fr.obs_dt[a] + fr.obs_dt[b]) / 2 for a, _, b, _ in regroup],
+        ]
     return Observations(
         fr.stamp_ns,
         xy,
@@ -450,6 +490,7 @@ def _to_odom(
         alt if len(pairs) else None,
         dt,
         view,
+        joins if m else None,
     )
 
 
@@ -603,12 +644,9 @@ def track_all(
                 src = ob.source[p.det_index]
                 sources.setdefault(p.track_id, Counter())[src] += 1
                 if walk_gate or walk_support:
-                    # a leg of a split pair (a row past the observations) is where its pair was
-                    row = (
-                        int(ob.alt_of[p.det_index])
-                        if p.det_index >= len(how) and ob.alt_of is not None
-                        else p.det_index
-                    )
+                    # a leg of a split pair or a midpoint of two pairs' legs (a row past the
+                    # observations) is where its pair was
+                    row = ob.origin(p.det_index)
                     # left out, not marked: a walk that crosses such places for over _WALK_GAP_S is cut
                     # there (else a few observations on the way from one chair leg to the next span a hop)
                     if occ is None or not 0 <= row < len(occ) or not occ[row] >= _WALK_OCCUPIED:
@@ -663,10 +701,11 @@ def track_all(
             xo = fr.robot_pose.apply(xb)  # the outputs stay in the odometry frame
             cov = R @ p.cov @ R.T
             o, ob, k = fr.observations, observations[fr_i], p.det_index
-            # rows past the observations are legs of a pair split between two people: placed by the laser
-            # alone, the pair's score, no box (the pair's box, if any, vouched for both: see camera_hits)
+            # rows past the observations are legs of a pair split between two people, or midpoints of two
+            # pairs' legs paired the other way: placed by the laser alone, the pair's score, no box (the
+            # pair's box, if any, vouched for both: see camera_hits)
             leg = k >= len(o)
-            j = int(ob.alt_of[k]) if leg and ob.alt_of is not None else k
+            j = ob.origin(k) if k >= 0 else k
             if k < 0:
                 source = sources[p.track_id].most_common(1)[0][0]
             else:

@@ -71,6 +71,11 @@ class Observations:
             the offline smoother take a person's motion over it into account. None: all at ``stamp_ns``.
         view: what the scanners saw in this frame (:class:`~studio.track.sight.ScanView`, tracking frame), or
             None: the offline tracker does not bridge a gap by a walk through places seen empty.
+        joins: (N, 2) int64 or None. A row ``k`` with ``joins[k] = (la, lb)`` (two leg rows of two different
+            leg pairs) is not an observation of its own either but the midpoint of those two legs: the other
+            way to pair the legs of two people side by side, where the laser detector paired a leg of each.
+            A tracker gives it out only together with its :meth:`complement` (the other two legs), to two
+            tracks instead of the two pairs; ``(-1, -1)`` for every other row. None: no such rows.
     """
 
     stamp_ns: int
@@ -83,6 +88,7 @@ class Observations:
     alt_of: NDArray[np.int64] | None = None
     dt_s: FloatArray | None = None
     view: ScanView | None = None
+    joins: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.stamp_ns, bool) or not isinstance(self.stamp_ns, int | np.integer):
@@ -126,6 +132,8 @@ class Observations:
                 raise ValueError("alt_of must be -1 or the row of an observation that is not an alternative")
             alt.flags.writeable = False
             object.__setattr__(self, "alt_of", alt)
+        if self.joins is not None:
+            self._check_joins(n)
         if self.dt_s is not None:
             dt = np.asarray(self.dt_s, dtype=np.float64)
             if dt.shape != (n,) or not np.all(np.isfinite(dt)):
@@ -137,8 +145,70 @@ class Observations:
         object.__setattr__(self, "appearance", app)
         object.__setattr__(self, "source", source)
 
+    def _check_joins(self, n: int) -> None:
+        joins = np.asarray(self.joins)
+        if joins.shape != (n, 2) or (n and not np.issubdtype(joins.dtype, np.integer)):
+            raise ValueError(f"joins must be ({n}, 2) integers")
+        joins = joins.astype(np.int64)
+        rows = np.flatnonzero(joins[:, 0] >= 0)
+        alt = self.alt_of if self.alt_of is not None else np.full(n, -1, np.int64)
+        legs = joins[rows]
+        ok = bool(np.all((joins >= -1) & (joins < n)) and np.all((joins[:, 0] >= 0) == (joins[:, 1] >= 0)))
+        ok = ok and bool(np.all(alt[rows] < 0) and np.all(joins[alt[alt >= 0], 0] < 0))
+        ok = ok and bool(np.all(alt[legs] >= 0) and np.all(alt[legs[:, 0]] != alt[legs[:, 1]]))
+        if not ok:
+            raise ValueError("joins must be -1 or two leg rows (alt_of >= 0) of two different leg pairs")
+        joins.flags.writeable = False
+        object.__setattr__(self, "joins", joins)
+
     def __len__(self) -> int:
         return len(self.xy)
+
+    @property
+    def alternative(self) -> NDArray[np.bool_]:
+        """(N,) the rows that are not observations of their own: legs of a pair (``alt_of``) and midpoints
+        of two legs of different pairs (``joins``). A tracker gives them out only as those fields say."""
+        out = np.zeros(len(self.xy), dtype=bool)
+        if self.alt_of is not None:
+            out |= self.alt_of >= 0
+        if self.joins is not None:
+            out |= self.joins[:, 0] >= 0
+        return out
+
+    def origin(self, row: int) -> int:
+        """The observation whose detection a row comes from: the pair of a leg, the pair of the first leg of
+        a midpoint of two legs (``joins``), else the row itself."""
+        if self.joins is not None and self.joins[row, 0] >= 0:
+            row = int(self.joins[row, 0])
+        if self.alt_of is not None and self.alt_of[row] >= 0:
+            return int(self.alt_of[row])
+        return row
+
+    def complement(self, row: int) -> int:
+        """For a midpoint of two legs (``joins``), the midpoint of the other two legs of the same two pairs
+        (-1 where the frame has none); -1 for any other row."""
+        if self.joins is None or self.joins[row, 0] < 0 or self.alt_of is None:
+            return -1
+        legs = set(self.joins[row].tolist())
+        pairs = {int(self.alt_of[leg]) for leg in legs}
+        for k in np.flatnonzero(self.joins[:, 0] >= 0):
+            other = set(self.joins[k].tolist())
+            if not other & legs and {int(self.alt_of[leg]) for leg in other} == pairs:
+                return int(k)
+        return -1
+
+    def regroupings(self, a: int, b: int) -> list[tuple[int, int]]:
+        """The couples of midpoint rows (``joins``) that pair the four legs of leg pairs ``a`` and ``b`` the
+        other ways, each couple once; empty when the frame has none for these two pairs."""
+        if self.joins is None or self.alt_of is None or a == b:
+            return []
+        out = []
+        for k in np.flatnonzero(self.joins[:, 0] >= 0):
+            if {int(self.alt_of[leg]) for leg in self.joins[k]} == {a, b}:
+                c = self.complement(int(k))
+                if c > k:
+                    out.append((int(k), c))
+        return out
 
     def transformed(self, pose: Pose2) -> Observations:
         """The same observations in another frame: ``pose`` is ``T_new_old`` (e.g. the robot's odom pose

@@ -244,6 +244,8 @@ def _options(o: Observations, i: int, held: Sequence[Hit | None], split_legs: bo
             legs = np.flatnonzero(o.alt_of == h[1])
             if len(legs) == 2:
                 sets.append([*hits[:n], (i, int(legs[0])), (i, int(legs[1])), *hits[n + 1 :]])
+    if len(hits) == 2 and o.joins is not None:
+        sets += [[(i, r) for r in rows] for rows in _pairings(o, hits[0][1], hits[1][1])]
     out = []
     for items in sets:
         for slots in itertools.permutations(range(k), len(items)):
@@ -252,6 +254,16 @@ def _options(o: Observations, i: int, held: Sequence[Hit | None], split_legs: bo
                 opt[s] = h
             out.append(tuple(opt))
     return out
+
+
+def _pairings(o: Observations, ra: int, rb: int) -> list[tuple[int, int]]:
+    """The other ways to pair the legs behind two held rows: for two leg pairs, the midpoints of their legs
+    paired the other ways (``Observations.joins``); for two such midpoints that complement each other, the
+    two pairs and the third way."""
+    if o.joins is not None and o.alt_of is not None and o.complement(ra) == rb:
+        pa, pb = (int(o.alt_of[leg]) for leg in o.joins[ra])
+        return [(pa, pb), *[c for c in o.regroupings(pa, pb) if set(c) != {ra, rb}]]
+    return o.regroupings(ra, rb)
 
 
 def reassign_encounters(

@@ -173,11 +173,8 @@ def fill_gaps(
                 here = paths.get(i, {})
                 path = here[tid]
                 o = obs[i]
-                free = [
-                    r
-                    for r in range(len(o.xy))
-                    if (i, r) not in taken and (o.alt_of is None or o.alt_of[r] < 0)
-                ]
+                alternative = o.alternative
+                free = [r for r in range(len(o.xy)) if (i, r) not in taken and not alternative[r]]
                 best, best_d = -1, cfg.path_radius if along else cfg.radius
                 for r in free:
                     d = (
