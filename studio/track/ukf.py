@@ -20,7 +20,6 @@ again, or deleted when it has not been observed for ``max_coast_s`` seconds.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -76,11 +75,6 @@ class UkfTrackerConfig:
             standing together, whose legs pair across frame after frame. Two people passing each other
             pair across for a frame or two, and their motion carries them through better than legs that
             could be either's.
-        regroup_margin: where two established tracks took two laser leg pairs whose legs also pair the
-            other way (``Observations.joins``: two people side by side, the laser paired a leg of each), they
-            take the other pairing's two midpoints instead when those cost at least this much less, summed
-            over both tracks (the association cost: Mahalanobis d² plus log det) and both lie inside the
-            tracks' gates. None: the detector's pairing is kept.
         alpha, beta, kappa: scaled sigma-point parameters of the UKF.
     """
 
@@ -102,7 +96,6 @@ class UkfTrackerConfig:
     appearance_momentum: float = 0.8
     split_pair_separation_m: float | None = 0.25
     split_pair_max_relative_speed: float = 0.6
-    regroup_margin: float | None = 4.0
     alpha: float = 1.0
     beta: float = 2.0
     kappa: float = 0.0
@@ -205,7 +198,7 @@ class UkfTracker:
         for t in self._tracks:
             self._predict(t, obs.stamp_ns)
 
-        free = ~obs.alternative  # a pair's legs and other pairings: only through _split_pairs, _regroup
+        free = ~obs.alternative  # a pair's legs: only through _split_pairs; other pairings: offline
         groups = (
             [
                 [t for t in self._tracks if t.state != "tentative"],
@@ -227,9 +220,7 @@ class UkfTracker:
             for r, k in gnn_assign(cost, allowed):
                 matched[group[r].track_id] = int(cols[k])
                 free[cols[k]] = False
-            established = [t for t in group if t.state != "tentative"]
-            self._split_pairs(established, obs, matched)
-            self._regroup(established, obs, matched)
+            self._split_pairs([t for t in group if t.state != "tentative"], obs, matched)
 
         for t in list(self._tracks):
             row = matched.get(t.track_id)
@@ -294,36 +285,6 @@ class UkfTracker:
                 _, b, la, lb = best
                 matched[a.track_id], matched[b.track_id] = la, lb
                 idle.remove(b)
-
-    def _regroup(self, group: list[_Track], obs: Observations, matched: dict[int, int]) -> None:
-        """Give two tracks that took two leg pairs the midpoints of those pairs' legs paired the other way
-        (in place), where that fits them ``regroup_margin`` better (see the config)."""
-        margin = self.config.regroup_margin
-        if obs.joins is None or margin is None:
-            return
-        held = {matched[t.track_id]: t for t in group if t.track_id in matched}
-        moved: set[int] = set()
-        for a, b in itertools.combinations(sorted(held), 2):
-            couples = obs.regroupings(a, b)
-            if not couples or moved & {a, b}:
-                continue
-            ta, tb = held[a], held[b]
-            zp, Pz = np.array([ta.z_pred, tb.z_pred]), np.array([ta.Pz, tb.Pz])
-            rows = np.array([a, b, *itertools.chain.from_iterable(couples)])
-            d2, logdet = mahalanobis_costs(zp, Pz, obs.xy[rows], obs.cov[rows])
-            cost = d2 + logdet if self.config.use_logdet else d2
-            col = {int(r): k for k, r in enumerate(rows)}
-            best, choice = cost[0, 0] + cost[1, 1] - margin, None
-            for ra, rb in couples:
-                for x, y in ((ra, rb), (rb, ra)):
-                    kx, ky = col[x], col[y]
-                    if d2[0, kx] > self._gate or d2[1, ky] > self._gate:
-                        continue
-                    if cost[0, kx] + cost[1, ky] < best:
-                        best, choice = cost[0, kx] + cost[1, ky], (x, y)
-            if choice is not None:
-                matched[ta.track_id], matched[tb.track_id] = choice
-                moved |= {a, b}
 
     def _appearance_terms(
         self,
