@@ -19,8 +19,9 @@ before and after, and its kind: an *encounter*'s, with someone else within 0.8 m
 person had gone unmatched for more than 1 s; or *other*), marks the switches that were *undone* (the
 person went from track A to B and back to A within 3 s: two tracks exchanged people for a moment)
 and the switches *to check* (within 2 s of a review point of ``review.jsonl`` on the track before or after,
-:mod:`studio.labels.review`: what a person checking the doubts the run lists would find), and counts the
-kinds, the undone, the switches to check and the review points per minute. ``--image-period``
+:mod:`studio.labels.review`: what a person checking the doubts the run lists would find) and *first* (such
+a point has a doubt of 0.3 or more: the Rerun log's warnings), and counts the kinds, the undone, the
+switches to check (first) and the review points per minute (to check first). ``--image-period``
 emulates another image detector period from a pass one that ran the detector on every frame (stored
 separately). ``--laser-again`` runs the current laser detector again on the stored scans (in the base frame,
 so positions differ from ``studio label``'s in the last digits): a laser detector change measured in a minute
@@ -335,15 +336,17 @@ UNDONE_S = 3.0  # a switch from track A to B undone (B back to A) within this ma
 CHECK_S = 2.0  # a switch this near a review point of the track before or after it is one to check
 
 
-def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int, int, int]:
+def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int, int, int, int, int]:
     """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, how
     many of them come in *undone* pairs (the person went from track A to track B and back to A within
     :data:`UNDONE_S` seconds: two tracks exchanged people for a moment; each such pair is two switches),
     how many are *to check* (within :data:`CHECK_S` of a review point on track A or B, as ``studio
-    label`` lists them in ``review.jsonl``) and how many review points there are."""
+    label`` lists them in ``review.jsonl``), how many of those are to check *first* (such a point has a
+    doubt of :data:`~studio.labels.review.FIRST_DOUBT` or more), how many review points there are and
+    how many of them are to check first."""
     from studio.evaluate.align import align_frames
     from studio.evaluate.clear import ClearMOT
-    from studio.labels import review_points
+    from studio.labels.review import FIRST_DOUBT, review_points
 
     points = review_points(labels)
 
@@ -369,14 +372,18 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             kind = switch_kind(near, gap_s)
             kinds[kind] += 1
             t = seconds[fe.frame]
-            check = any(
-                {was, match.get(g)} & set(p.ids) and abs(p.stamp_ns / 1e9 - t) <= CHECK_S for p in points
-            )
-            kinds["to check"] += check
+            near_points = [
+                p for p in points if {was, match.get(g)} & set(p.ids) and abs(p.stamp_ns / 1e9 - t) <= CHECK_S
+            ]
+            first = any(p.doubt >= FIRST_DOUBT for p in near_points)
+            kinds["to check"] += bool(near_points)
+            kinds["first"] += first
             text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its last match, frame {before}) "
-                f"-> {match.get(g)} [{kind}]" + (" to check" if check else "")
+                f"-> {match.get(g)} [{kind}]"
+                + (" to check" if near_points else "")
+                + (" first" if first else "")
             )
             events.append((seconds[fe.frame], g, was, match.get(g), text))
         for g, p in match.items():
@@ -392,7 +399,8 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
                 break
     for i, (*_, text) in enumerate(events):
         print(text + (" undone" if i in undone else ""))
-    return kinds, len(undone), kinds.pop("to check", 0), len(points)
+    n_first = sum(p.doubt >= FIRST_DOUBT for p in points)
+    return kinds, len(undone), kinds.pop("to check", 0), kinds.pop("first", 0), len(points), n_first
 
 
 HANDOVER_S = 3.0  # a track matched to another person within this many seconds of its last match
@@ -506,7 +514,7 @@ def main() -> None:
         options = replace(options, tracking=replace(options.tracking, **dict.fromkeys(args.without)))
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
-    total_undone = total_check = total_points = 0
+    total_undone = total_check = total_first = total_points = total_points_first = 0
     runs: list[Run] = []
     for seed in args.seeds:
         rec = recording(
@@ -553,14 +561,17 @@ def main() -> None:
             if args.likelihood:
                 compare_likelihood(seen, oracle_tracker(fused, gt))
             if args.switches:
-                kinds, undone, check, n_points = switches(labels, ev, gt)
+                kinds, undone, check, first, n_points, n_first = switches(labels, ev, gt)
                 total += kinds
                 total_undone += undone
                 total_check += check
+                total_first += first
                 total_points += n_points
+                total_points_first += n_first
                 print(
                     "  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {undone} undone; "
-                    f"{check} to check, review points {n_points} ({n_points / minutes:.1f}/min)"
+                    f"{check} to check ({first} first), review points {n_points} "
+                    f"({n_points / minutes:.1f}/min, {n_first} to check first)"
                 )
             if args.handovers:
                 kinds = handovers(ev, gt)
@@ -571,6 +582,8 @@ def main() -> None:
     if args.handovers and len(args.seeds) > 1:
         print("all handovers: " + ", ".join(f"{k} {n}" for k, n in sorted(total_handovers.items())))
     if args.switches and len(args.seeds) > 1:
+        from studio.labels.review import FIRST_DOUBT
+
         print(
             "all: "
             + ", ".join(f"{k} {n}" for k, n in sorted(total.items()))
@@ -580,6 +593,10 @@ def main() -> None:
         print(
             f"all: {total_check} of {sum(total.values())} switches to check (within {CHECK_S:g} s of a "
             f"review point on their tracks); {total_points} review points ({total_points / minutes:.1f}/min)"
+        )
+        print(
+            f"all: {total_first} switches to check first (a point of doubt >= {FIRST_DOUBT:g}: "
+            f"{total_points_first} points, {total_points_first / minutes:.1f}/min)"
         )
 
 

@@ -20,7 +20,8 @@ Endpoints::
     POST /api/undo, /api/redo           {"base_rev": r, "client": "..."}
     GET  /api/history?frame=&limit=     the corrections log, newest first
     GET  /api/metrics                   auto labels vs ground truth on the reviewed frames
-    GET  /api/next?kind=flag|unreviewed|doubt&from=n&dir=1|-1   (doubt: review.jsonl's, unreviewed)
+    GET  /api/next?kind=flag|unreviewed|doubt|worst&from=n&dir=1|-1   (doubt: review.jsonl's, unreviewed;
+                                        worst: the unreviewed one of the highest doubt, anywhere)
     GET  /api/rerun                     the Rerun link's state; POST /api/rerun/time {"frame": n}
 """
 
@@ -108,7 +109,9 @@ class AnnotateServer:
             raise ServerError(str(exc)) from None
         self.doubts: dict[int, list[dict[str, Any]]] = {}  # frame -> the run's review points there
         for p in points:
-            self.doubts.setdefault(p.frame, []).append({"ids": list(p.ids), "kind": p.kind, "note": p.note})
+            self.doubts.setdefault(p.frame, []).append(
+                {"ids": list(p.ids), "kind": p.kind, "note": p.note, "doubt": p.doubt}
+            )
         self.store = store if store is not None else AnnotationStore.open(self.run_dir, author=author)
         self.media = media or RunMedia(self.run_dir, cache_dir=self.run_dir / "annotations" / "cache")
         self.frame_ids = sorted(self.auto)
@@ -421,17 +424,20 @@ class AnnotateServer:
         return out
 
     def next_frame(self, kind: Any, start: Any, direction: Any, wait: Any = None) -> dict[str, Any]:
-        if kind not in ("flag", "unreviewed", "doubt"):
-            raise ApiError(400, f"kind must be 'flag', 'unreviewed' or 'doubt', got {kind!r}")
+        if kind not in ("flag", "unreviewed", "doubt", "worst"):
+            raise ApiError(400, f"kind must be 'flag', 'unreviewed', 'doubt' or 'worst', got {kind!r}")
         k = self.check_frame(start)
         step = 1 if direction in (None, "", "1", 1) else -1 if direction in ("-1", -1) else 0
         if step == 0:
             raise ApiError(400, f"dir must be 1 or -1, got {direction!r}")
         if kind == "flag":
             pool = set(self.flags(wait_s=_wait_param(wait) or 5.0)[0])
-        elif kind == "doubt":  # the ones not marked reviewed yet: checked doubts are done
+        elif kind in ("doubt", "worst"):  # the ones not marked reviewed yet: checked doubts are done
             with self.lock:
                 pool = (set(self.doubts) & self._frame_set) - self.reviewed()
+            if kind == "worst":  # the most doubtful first, wherever it is; of equals, the earliest
+                worst = min(pool, key=lambda m: (-max(d["doubt"] for d in self.doubts[m]), m), default=None)
+                return {"frame": worst, "remaining": len(pool)}
         else:
             with self.lock:
                 pool = self._frame_set - self.reviewed()

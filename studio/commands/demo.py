@@ -56,6 +56,6 @@ def run(args: argparse.Namespace) -> int:
     n = c.get("review_points", 0)
     print(
         f"check and correct it:   studio annotate {out}   (key c: the {n} moment{'s' * (n != 1)} where "
-        "identities are worth checking, review.jsonl)"
+        "identities are worth checking, review.jsonl; key x: the most doubtful first)"
     )
     return 0

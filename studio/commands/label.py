@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     if n:
         print(
             f"{n} moment{'s' * (n != 1)} where identities are worth checking: {args.out}/review.jsonl "
-            f"(studio annotate {args.out}, key c)"
+            f"(studio annotate {args.out}: key c the next, key x the most doubtful)"
         )
     for note in info["notes"]:
         print(f"note: {note}")

@@ -69,7 +69,8 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "- `tracks_mot.csv`: MOTChallenge-style rows (1-based frame, id, box, score, odom x, y)",
         "- `detections.yaml`: per-frame fused detections before tracking",
         "- `review.jsonl`: the moments where identities are worth checking (two tracks that met, a track "
-        "seen again after a gap, a track that began mid-run), each with its frame, tracks and a note",
+        "seen again after a gap, a track that began mid-run), each with its frame, tracks, a note and a "
+        "doubt (0-1: the likeliest errors first)",
         "- `run.json`: options, versions, timings",
         "",
         "## Sensors and calibration",
@@ -139,7 +140,8 @@ def dataset_card(result: Any, *, options: Any, recording: Path, rig: Any, n_imag
         "## Known limits",
         "- These are automatic labels: check them (`studio annotate`) before using them as ground truth. "
         "Identity switches lie mostly at the moments `review.jsonl` lists (on simulated recordings 94 % "
-        "within 2 s of one, 7.6 per minute); the annotator's key c goes from one to the next.",
+        "within 2 s of one, 7.6 per minute); the annotator's key c goes from one to the next, key x to the "
+        "most doubtful one.",
         "- Image-only positions assume a flat floor at z = 0 of the base frame and visible feet.",
         "- Someone who stands on one spot for most of the time the laser sees it may be filtered out as "
         "structure, unless the laser saw the spot empty from within 4 m while the robot moved.",

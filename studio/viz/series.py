@@ -146,8 +146,10 @@ def log_run_series(
 
 
 def _review(rec: rr.RecordingStream, labels: list[LabelFrame]) -> None:
-    """The moments where identities are worth checking (:mod:`studio.labels.review`), as a text log."""
-    from studio.labels.review import review_points
+    """The moments where identities are worth checking (:mod:`studio.labels.review`), as a text log: level
+    WARN for a doubt of :data:`~studio.labels.review.FIRST_DOUBT` or more (the likeliest errors: filter the
+    log's levels), else INFO."""
+    from studio.labels.review import FIRST_DOUBT, review_points
 
     points = review_points(labels) if all(f.stamp_ns is not None for f in labels) else []
     if points:
@@ -155,7 +157,8 @@ def _review(rec: rr.RecordingStream, labels: list[LabelFrame]) -> None:
             ep.REVIEW,
             indexes=_times([p.frame for p in points], [p.stamp_ns for p in points]),
             columns=rr.TextLog.columns(
-                text=[f"frame {p.frame} ({p.kind}): {p.note}" for p in points], level=["WARN"] * len(points)
+                text=[f"frame {p.frame} ({p.kind}, doubt {p.doubt:.2f}): {p.note}" for p in points],
+                level=["WARN" if p.doubt >= FIRST_DOUBT else "INFO" for p in points],
             ),
         )
 

@@ -362,9 +362,9 @@ def test_doubts_are_the_runs_review_points(sim_run: Path, run_copy: Path) -> Non
     assert made == review_points(read_labels(sim_run / "labels.jsonl").frames)
     stamps = {f.frame: f.stamp_ns for f in read_labels(run_copy / "labels.jsonl").frames}
     points = [
-        ReviewPoint(7, stamps[7], (1,), "gap", "track 1 seen again after 1.2 s: the same person?"),
-        ReviewPoint(20, stamps[20], (1, 2), "encounter", "tracks 1 and 2 came within 0.31 m: ..."),
-        ReviewPoint(20, stamps[20], (3,), "start", "track 3 begins: is it someone labelled before?"),
+        ReviewPoint(7, stamps[7], (1,), "gap", "track 1 seen again after 1.2 s: the same person?", 0.2),
+        ReviewPoint(20, stamps[20], (1, 2), "encounter", "tracks 1 and 2 came within 0.31 m: ...", 0.6),
+        ReviewPoint(20, stamps[20], (3,), "start", "track 3 begins: is it someone labelled before?", 0.2),
     ]
     write_review(run_copy / "review.jsonl", points)
     state = AnnotateServer(run_copy, author="tester")
@@ -375,16 +375,21 @@ def test_doubts_are_the_runs_review_points(sim_run: Path, run_copy: Path) -> Non
             assert client.get("/api/next?kind=doubt&start=7").json()["frame"] == 20
             assert client.get("/api/next?kind=doubt&start=20").json()["frame"] is None
             assert client.get("/api/next?kind=doubt&start=20&dir=-1").json()["frame"] == 7
+            # the most doubtful first, from wherever one is
+            assert client.get("/api/next?kind=worst&start=30").json() == {"frame": 20, "remaining": 2}
             # a doubt whose frame was marked reviewed is checked off
             assert op(client, {"op": "review", "start": 7, "end": 7}).status_code == 200
             assert client.get("/api/next?kind=doubt&start=0").json() == {"frame": 20, "remaining": 1}
             doubts = client.get("/api/frame/20").json()["doubts"]
             assert [d["ids"] for d in doubts] == [[1, 2], [3]]
             assert doubts[0]["kind"] == "encounter"
+            assert [d["doubt"] for d in doubts] == [0.6, 0.2]
+            assert op(client, {"op": "review", "start": 20, "end": 20}).status_code == 200
+            assert client.get("/api/next?kind=worst&start=0").json() == {"frame": None, "remaining": 0}
             assert client.get("/api/frame/8").json()["doubts"] == []
             r = client.get("/api/next?kind=doubts&start=0")
             assert r.status_code == 400
-            assert "'doubt'" in r.json()["error"]
+            assert "'worst'" in r.json()["error"]
     finally:
         state.close()
     (run_copy / "review.jsonl").write_text('{"frame": 1}\n')

@@ -40,8 +40,8 @@ def moved_server(tmp_path_factory: pytest.TempPathFactory, tmp_path: Path) -> It
     write_review(
         run / "review.jsonl",
         [
-            ReviewPoint(30, stamps[30], (1,), "gap", "track 1 seen again after 1.4 s: the same person?"),
-            ReviewPoint(45, stamps[45], (1, 2), "encounter", "tracks 1 and 2 came within 0.33 m: ..."),
+            ReviewPoint(30, stamps[30], (1,), "gap", "track 1 seen again after 1.4 s: the same person?", 0.2),
+            ReviewPoint(45, stamps[45], (1, 2), "encounter", "tracks 1 and 2 came within 0.33 m: ...", 0.45),
         ],
     )
     state = AnnotateServer(run, author="keys")
@@ -134,6 +134,11 @@ def test_keyboard_flow_without_recording(moved_server: str) -> None:
             expect(page.locator("#doubt-note")).to_contain_text("track 1 seen again after 1.4 s")
             status = "unreviewed doubt frame 30 · 2 unreviewed doubt frames"
             expect(page.locator("#status")).to_contain_text(status)
+            # X: the most doubtful one, wherever it is, with its doubt in the note
+            page.keyboard.press("x")
+            expect(page.locator("#frameno")).to_have_value("45")
+            expect(page.locator("#doubt-note")).to_contain_text("(doubt 0.45)")
+            expect(page.locator("#status")).to_contain_text("most doubtful frame 45")
 
             # polling asks for the small state, not the whole run's meta
             urls.clear()

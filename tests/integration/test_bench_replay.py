@@ -70,10 +70,10 @@ def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.Capt
         )
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, undone, check, n_points = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, undone, check, first, n_points, n_first = load_bench("replay_tracking").switches(pred, ev, truth)
     assert kinds == {"encounter": 4, "other": 2}
     assert undone == 4
-    assert (check, n_points) == (0, 0)  # tracks 0.5 m apart that begin with the run: nothing to check
+    assert (check, first, n_points, n_first) == (0, 0, 0, 0)  # 0.5 m apart, begun with the run: no point
     out = capsys.readouterr().out
     assert (
         "frame    15 person   3 at  6.5 m, nearest other 0.50 m: "
@@ -126,9 +126,11 @@ def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(
         pred.append(_frame(i, p, period_ns))
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, _, to_check, n_points = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, _, to_check, first, n_points, n_first = load_bench("replay_tracking").switches(pred, ev, truth)
     assert kinds == {kind: 1}
     assert to_check == n_points == check
+    # track 2 begins where track 1 was last seen: doubt 0.4, a point to check first
+    assert first == n_first == check
     assert ("to check" in capsys.readouterr().out) == bool(check)
 
 

@@ -104,3 +104,27 @@ def test_review_file_round_trip_and_bad_lines(tmp_path: Path) -> None:
     path.write_text(path.read_text() + '{"frame": 3, "ids": "x"}\n')
     with pytest.raises(LabelError, match=r"review.jsonl:3: not a review point"):
         read_review(path)
+
+
+def test_doubt_ranks_the_likelier_errors_first() -> None:
+    """Far encounters over near ones, long jumps over standing still, a start where a track ended."""
+    near = review_points(
+        frames_of({1: walk(0.0, 1.0, range(40), 0.1), 2: walk(4.0, -1.0, range(40), -0.1)}, 40)
+    )
+    far = review_points(
+        frames_of({1: walk(6.0, 1.0, range(40), 0.1), 2: walk(10.0, -1.0, range(40), -0.1)}, 40)
+    )
+    assert near[0].doubt < far[0].doubt == 0.6  # 8 m or more from the robot: the most an encounter gets
+    # a gap: standing still, or 2 m further on after 1.5 s
+    still = dict.fromkeys(range(10), (1.0, 2.0)) | dict.fromkeys(range(25, 40), (1.0, 2.0))
+    moved = dict.fromkeys(range(10), (1.0, 2.0)) | dict.fromkeys(range(25, 40), (3.0, 2.0))
+    (a,) = review_points(frames_of({1: still}, 40))
+    (b,) = review_points(frames_of({1: moved}, 40))
+    assert (a.kind, b.kind) == ("gap", "gap")
+    assert a.doubt == pytest.approx(0.1 * 1.5 / 20, abs=0.005)  # hundredths
+    assert b.doubt == pytest.approx(0.3 + 0.1 * 1.5 / 20, abs=0.005)
+    # a track beginning 2 m from where another was last observed 1 s before; one beginning far from any
+    ended = dict.fromkeys(range(10), (1.0, 2.0))
+    (start,) = review_points(frames_of({1: ended, 2: dict.fromkeys(range(20, 40), (1.0, 4.0))}, 40))
+    (alone,) = review_points(frames_of({1: ended, 2: dict.fromkeys(range(20, 40), (1.0, 8.0))}, 40))
+    assert (start.kind, start.doubt, alone.doubt) == ("start", 0.4, 0.2)

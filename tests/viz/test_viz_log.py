@@ -227,6 +227,9 @@ def test_review_points_as_a_text_log(tmp_path: Path) -> None:
     logged = [r for r in rows["/review"] if r.get("frame") is not None]
     assert [r["frame"] for r in logged] == [vs.N_FRAMES - 1]
     assert "tracks 1 and 2 came within 0.35 m" in logged[0]["TextLog:text"][0]
+    # 2.2 m from the robot: doubt 0.3 + 0.3 * 2.2 / 8, at or above 0.3: a warning
+    assert "(encounter, doubt 0.38)" in logged[0]["TextLog:text"][0]
+    assert logged[0]["TextLog:level"] == ["WARN"]
     assert timelines["/review"] == {"frame", "time"}
     # nothing to check: no entity
     syn.run.labels = [replace(f, people=tuple(p for p in f.people if p.id == 1)) for f in labels]

@@ -72,7 +72,8 @@ async function loadFrame(idx, { keepSel = true } = {}) {
   if (!keepSel || changed) { if (S.sel !== null && !data.gt.some((p) => p.id === S.sel)) S.sel = keepSel ? S.sel : null; }
   if (data.reviewed) S.reviewed.add(n); else S.reviewed.delete(n);
   const doubts = data.doubts || [], dn = $("doubt-note");
-  dn.textContent = doubts.length ? "to check: " + doubts.map((q) => q.note).join(" · ") : "";
+  const how = (q) => (q.doubt === undefined ? "" : ` (doubt ${q.doubt.toFixed(2)})`);
+  dn.textContent = doubts.length ? "to check: " + doubts.map((q) => q.note + how(q)).join(" · ") : "";
   dn.hidden = !doubts.length;
   render();
   loadHistory();
@@ -222,14 +223,15 @@ const ops = {
 async function jump(kind, dir = 1) {
   try {
     const r = await api(`/api/next?kind=${kind}&start=${frameNo()}&dir=${dir}`);
-    const what = { flag: "flagged", unreviewed: "unreviewed", doubt: "unreviewed doubt" }[kind];
-    if (r.frame === null) { status(`no ${dir > 0 ? "further" : "earlier"} ${what} frame`, ""); return; }
+    const what = { flag: "flagged", unreviewed: "unreviewed", doubt: "unreviewed doubt", worst: "unreviewed doubt" }[kind];
+    if (r.frame === null) { status(kind === "worst" ? "no unreviewed doubt frame" : `no ${dir > 0 ? "further" : "earlier"} ${what} frame`, ""); return; }
     await loadFrame(S.frames.indexOf(r.frame));
-    if (kind === "doubt" && S.data && S.data.frame === r.frame) {  // select the first track in doubt
-      const ids = (S.data.doubts[0] || { ids: [] }).ids.filter((i) => S.data.gt.some((p) => p.id === i));
+    if ((kind === "doubt" || kind === "worst") && S.data && S.data.frame === r.frame) {  // select the first track in doubt
+      const first = S.data.doubts.reduce((a, q) => (q.doubt > a.doubt ? q : a), S.data.doubts[0] || { ids: [] });
+      const ids = first.ids.filter((i) => S.data.gt.some((p) => p.id === i));
       if (ids.length) { S.sel = ids[0]; render(); }
     }
-    status(`${what} frame ${r.frame} · ${r.remaining} ${what} frames in all`, "");
+    status(`${kind === "worst" ? "most doubtful" : what} frame ${r.frame} · ${r.remaining} ${what} frames in all`, "");
   } catch (e) { status(e.message, "bad"); }
 }
 
@@ -497,6 +499,7 @@ function setupControls() {
   $("next-flag").onclick = () => jump("flag");
   $("next-unrev").onclick = () => jump("unreviewed");
   $("next-doubt").onclick = () => jump("doubt");
+  $("worst-doubt").onclick = () => jump("worst");
   $("reviewed").onclick = () => ops.review(!(S.data && S.data.reviewed));
   $("undo").onclick = () => undoRedo("undo");
   $("redo").onclick = () => undoRedo("redo");
@@ -522,7 +525,7 @@ function setupControls() {
       ArrowRight: () => loadFrame(S.idx + step), ArrowLeft: () => loadFrame(S.idx - step), d: () => loadFrame(S.idx + 1), a: () => loadFrame(S.idx - 1),
       Home: () => loadFrame(0), End: () => loadFrame(S.frames.length - 1),
       f: () => jump("flag", 1), F: () => jump("flag", -1), u: () => jump("unreviewed", 1), U: () => jump("unreviewed", -1),
-      c: () => jump("doubt", 1), C: () => jump("doubt", -1),
+      c: () => jump("doubt", 1), C: () => jump("doubt", -1), x: () => jump("worst"),
       r: () => ops.review(!(S.data && S.data.reviewed)),
       Enter: async () => { if (await ops.review(true)) loadFrame(S.idx + 1); }, // stay on a refused frame
       n: () => { S.addMode = !S.addMode; render(); }, Delete: ops.del, Backspace: ops.del,
