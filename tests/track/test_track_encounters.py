@@ -11,6 +11,7 @@ from studio.track import Observations
 from studio.track.appearance import appearance_distance
 from studio.track.encounters import EncounterConfig, reassign_encounters
 from studio.track.smooth import filter_track, rts_smooth
+from tests.track.legs_testdata import detections, overtaking
 
 T0 = 1_700_000_000_000_000_000
 ACCEL = 0.65
@@ -368,3 +369,18 @@ def test_a_newcomers_detections_go_to_the_track_that_began_with_them():
     assert _rows(fixed[2]) == [1] * 90
     fixed, _ = _run(obs, tracks, appearance_weight=0.0)
     assert _rows(fixed[1]) != [0] * 120
+
+
+def test_two_leg_pairs_crossed_between_two_people_are_paired_the_other_way():
+    """A overtakes B 0.45 m beside them; in frames 18-22 the laser paired the front leg of each and the back
+    leg of each, and the online tracker gave A and B those crossed pairs. With both trajectories known, the
+    re-decision gives each the midpoint of its own legs (``Observations.joins``)."""
+    crossed = set(range(18, 23))
+    paths = overtaking()
+    obs = detections(paths, crossed)
+    tracks = {4: [(k, 0) for k in range(40)], 8: [(k, 1) for k in range(40)]}  # crossed: front, back legs
+    fixed, changed = _run(obs, tracks, split_legs=False)
+    assert changed >= 1
+    for tid, person in ((4, 0), (8, 1)):
+        for k, r in fixed[tid]:
+            assert np.hypot(*(obs[k].xy[r] - paths[k][person])) < 0.1, (tid, k)
