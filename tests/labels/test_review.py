@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -101,6 +102,14 @@ def test_review_file_round_trip_and_bad_lines(tmp_path: Path) -> None:
     write_review(path, points)
     assert read_review(path) == points
     assert read_review(tmp_path / "none.jsonl") == []  # a run made before review.jsonl existed
+    # a file from before session 71: no doubt, read as 0.5
+    old = {k: v for k, v in points[0].to_json().items() if k != "doubt"}
+    path.write_text(json.dumps(old) + "\n")
+    assert read_review(path)[0].doubt == 0.5
+    path.write_text(json.dumps(points[0].to_json() | {"doubt": 1.5}) + "\n")
+    with pytest.raises(LabelError, match=r"review.jsonl:1: not a review point \(doubt 1.5 not in \[0, 1\]\)"):
+        read_review(path)
+    write_review(path, points)
     path.write_text(path.read_text() + '{"frame": 3, "ids": "x"}\n')
     with pytest.raises(LabelError, match=r"review.jsonl:3: not a review point"):
         read_review(path)
