@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from studio.detect.laser.base import KIND_BLOB, KIND_PAIR, LaserDetections
+from studio.detect.laser.classical import ClassicalLaserDetector
 from studio.errors import StudioError
 from studio.fuse.base import PersonObservations, ScanRays
 from studio.fuse.fusion import colours_hidden, fuse_frame
@@ -405,7 +406,7 @@ def recover_missed(fused: list[FrameResult], result: Any, options: LabelOptions)
     return out
 
 
-_REGROUP_LEG_MAX_M = 0.6  # two legs farther apart are no pair (the classical detector's pair_max)
+_REGROUP_LEG_MAX_M = ClassicalLaserDetector.pair_max  # two legs farther apart are no pair (0.6 m)
 
 
 def _regroupings(legs: FloatArray, pairs: NDArray[np.intp]) -> list[tuple[int, int, int, int]]:
