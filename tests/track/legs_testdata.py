@@ -31,6 +31,14 @@ def frame(k: int, pairs: list[np.ndarray]) -> Observations:
                     sig.append(PAIR_SIGMA)
                     alt.append(-1)
                     joins.append((n + 2 * a + x, n + 2 * b + y))
+    return laser_frame(k, xy, sig, alt, np.array(joins, np.int64) if len(xy) > 3 * n else None)
+
+
+def laser_frame(
+    k: int, xy: list[np.ndarray], sig: list[float], alt: list[int], joins: np.ndarray | None = None
+) -> Observations:
+    """Frame ``k`` at 10 Hz of laser observations at ``xy`` with standard errors ``sig``, ``alt_of`` rows
+    ``alt`` and ``joins``."""
     m = len(xy)
     return Observations(
         T0 + k * 100_000_000,
@@ -41,7 +49,7 @@ def frame(k: int, pairs: list[np.ndarray]) -> Observations:
         None,
         np.arange(m),
         np.array(alt, np.int64) if m else None,
-        joins=np.array(joins, np.int64) if m > 3 * n else None,
+        joins=joins,
     )
 
 

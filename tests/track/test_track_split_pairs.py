@@ -11,9 +11,7 @@ import numpy as np
 import pytest
 
 from studio.track import Observations, UkfTracker, UkfTrackerConfig
-
-T0 = 1_700_000_000_000_000_000
-PAIR_SIGMA, LEG_SIGMA = 0.05, 0.11
+from tests.track.legs_testdata import LEG_SIGMA, PAIR_SIGMA, T0, laser_frame
 
 
 def frame(k: int, people: list[np.ndarray], pairs: list[tuple[np.ndarray, np.ndarray]]) -> Observations:
@@ -26,17 +24,7 @@ def frame(k: int, people: list[np.ndarray], pairs: list[tuple[np.ndarray, np.nda
         xy += [a, b]
         sig += [LEG_SIGMA, LEG_SIGMA]
         alt += [len(people) + i] * 2
-    n = len(xy)
-    return Observations(
-        T0 + k * 100_000_000,
-        np.array(xy).reshape(-1, 2),
-        np.array([s**2 * np.eye(2) for s in sig]).reshape(-1, 2, 2),
-        ("laser",) * n,
-        np.ones(n),
-        None,
-        np.arange(n),
-        np.array(alt, np.int64) if n else None,
-    )
+    return laser_frame(k, xy, sig, alt)
 
 
 def walk_side_by_side(split: float | None, frames: int = 60) -> tuple[list[list], np.ndarray]:
