@@ -389,7 +389,7 @@ class ViewSweepDetector:
     ) -> list[NDArray[np.uint8]]:
         """``views`` (default: the sweep's) of ``pano`` (BGR uint8), in order."""
         check_pano(pano)
-        if views is None or len(views) == len(self.views):
+        if views is None or list(views) == self.views:
             return self.renderer.render_many(pano, self.views)
         # one by one: each subset's stacked look-up tables would be cached on their own
         return [self.renderer.render(pano, v) for v in views]

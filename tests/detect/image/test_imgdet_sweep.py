@@ -285,3 +285,19 @@ def test_zoom_looks_closer_at_a_far_bearing_where_the_views_found_nobody():
     assert view.height % 32 == 0
     det.windows = False  # a network of one input size: no closer looks
     assert det.zoom_views([far[0]], np.zeros((0, 4)), W) == []
+
+
+def test_as_many_other_views_as_the_sweep_has_are_rendered_as_themselves():
+    """Five closer looks (or windows) are not the sweep's five views (until session 74 they were rendered as
+    the sweep's, and the sweep's people were mapped back through the closer looks' geometry)."""
+    det = OracleSweep([], W, H)
+    det.windows = True
+    pano = np.random.default_rng(0).integers(0, 255, (H, W, 3), dtype=np.uint8)
+    closer = det.zoom_views([math.radians(a) for a in (-150, -80, 0, 60, 130)], np.zeros((0, 4)), W)
+    assert len(closer) == len(det.views)
+    for view, image in zip(closer, det.render_views(pano, closer), strict=True):
+        assert image.shape == (view.height, view.width, 3)
+        np.testing.assert_array_equal(image, det.renderer.render(pano, view))
+    sweep = det.render_views(pano, list(det.views))
+    for view, image in zip(det.views, sweep, strict=True):
+        np.testing.assert_array_equal(image, det.renderer.render(pano, view))
