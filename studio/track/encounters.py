@@ -281,10 +281,10 @@ def reassign_encounters(
     changed = 0
     smoothed = {tid: estimate(h)[2] for tid, h in tracks.items()}
     for a, b, f0, f1 in _windows(tracks, smoothed, cfg):
-        if not all(tracks[t][0][0] <= f0 <= tracks[t][-1][0] + 1 for t in (a, b)):
-            continue  # an earlier re-decision moved a track's start or end past the encounter
+        if not all(tracks[t] and tracks[t][0][0] <= f0 <= tracks[t][-1][0] + 1 for t in (a, b)):
+            continue  # an earlier re-decision moved a track's start or end past the encounter, or emptied it
         changed += _redecide(obs, tracks, [a, b], f0, f1, estimate, accel_sigma, cfg)
-    return tracks, changed
+    return {tid: h for tid, h in tracks.items() if h}, changed
 
 
 def _redecide(

@@ -158,6 +158,27 @@ def test_an_encounter_past_a_track_shortened_by_an_earlier_one_is_skipped(monkey
     assert fixed == tracks
 
 
+def test_a_track_emptied_by_an_earlier_encounter_drops_out(monkeypatch):
+    """A re-decision may give all of a short track's hits to the other track (moving seed 17 with the
+    session 74 closer looks: the next encounter of the emptied track stopped ``studio label``)."""
+    import studio.track.encounters as enc
+
+    obs = _frames(_passing())
+    tracks = {4: [(i, 0) for i in range(60) if not 25 <= i < 35], 8: [(i, 0) for i in range(25, 35)]}
+    tracks[9] = [(i, 1) for i in range(60)]
+    monkeypatch.setattr(enc, "_windows", lambda *_: [(4, 8, 25, 34), (8, 9, 30, 40)])
+
+    def take_all(obs, tracks, pair, f0, f1, *_):
+        a, b = pair
+        tracks[a], tracks[b] = sorted(tracks[a] + tracks[b]), []
+        return True
+
+    monkeypatch.setattr(enc, "_redecide", take_all)
+    fixed, changed = _run(obs, tracks)
+    assert changed == 1
+    assert fixed == {4: [(i, 0) for i in range(60)], 9: tracks[9]}
+
+
 LEG_SIGMA = 0.11
 
 
