@@ -10,8 +10,9 @@
     .venv/bin/python bench/replay_tracking.py --scenario moving --seeds 1 2 3 --laser-again --without swaps
 
 Pass one of ``studio label`` (image and laser detection, ~2–3 min for a 96 s recording on 2 cores) runs once
-per recording and is stored in ``bench/out/perception/<recording>.pkl`` (a development cache, not a contract:
-delete it when the detectors change; one stored before session 42's beam times is named when loaded). Each
+per recording and is stored in ``bench/out/perception/<recording>-p2.pkl`` (``-laser.pkl`` laser only; a
+development cache, not a contract: delete it when the detectors change, or raise :data:`CAMERA_PASS_ONE`;
+one stored before session 42's beam times is named when loaded). Each
 call then runs the static-world filter, fusion and offline tracking exactly as ``studio label`` does and
 prints the metrics at 0.2 m; ``--switches`` also lists every identity
 switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
@@ -85,12 +86,15 @@ STAGES = ("colour_cuts", "swaps", "encounters", "excursions", "claim", "gap_fill
 """The stages of :func:`studio.track.offline.track_offline` that ``--without`` can switch off (its
 ``OfflineConfig`` fields set to None)."""
 ORACLE_GATE_M = 0.5  # --oracle: an observation farther than this from every person is nobody's
+CAMERA_PASS_ONE = 2
+"""Raised when pass one's image detections change, so stored ones are not reused: 2 since session 74 (closer
+looks on every look, at the far laser detections of the last 0.5 s). Laser-only ones do not carry it."""
 
 
 def perception(rec: Path, options: LabelOptions) -> tuple[list[Any], EquirectCamera | None]:
     """The stored pass-one output of ``rec`` (computed and stored on the first call)."""
     tag = "-every-frame" if options.image_period_s == 0 else ""
-    tag += "-laser" if options.sources == "laser" else ""
+    tag += "-laser" if options.sources == "laser" else f"-p{CAMERA_PASS_ONE}"
     path = OUT / "perception" / f"{rec.name}{tag}.pkl"
     if not path.exists():
         sizes: dict[str, tuple[int, int]] = {}

@@ -27,6 +27,7 @@ from studio.pipeline.base import LabelOptions
 from studio.track.sight import ScanView, scan_view
 
 __all__ = [
+    "FarLooks",
     "NoLaserDetector",
     "PerceptionFrame",
     "QuietViews",
@@ -518,9 +519,10 @@ def perceive(
         det = detector.detect(pano, **kw)
         return det, clothing_colours(pano, det.boxes, det.keypoints), time.perf_counter() - t
 
-    # people far away are a few pixels tall in the detector's views: where the laser found one, the image
-    # detector looks closer (one that takes views of any size, ``windows``; see ViewSweepDetector.detect)
-    zooms = getattr(image_detector, "windows", False) and use_laser
+    # people far away are a few pixels tall in the detector's views: where the laser found one lately, the
+    # image detector looks closer (one that takes views of any size, ``windows``; see
+    # ViewSweepDetector.detect), on whole and partial looks alike
+    far_looks = FarLooks() if getattr(image_detector, "windows", False) and use_laser else None
     camera: Any = None
 
     # the part of the panorama where nobody was seen lately is looked at less often
@@ -617,10 +619,12 @@ def perceive(
                 pano = frame.panorama.image
                 columns = None if quiet is None else quiet.start(stamp, pano.shape[1])
                 zoom: list[float] = []
-                if zooms and columns is None and laser is not None and len(laser.xy):  # on whole looks
+                if far_looks is not None and laser is not None:
                     if camera is None or camera.width != pano.shape[1]:
                         camera = rig_camera(rig, pano.shape[1], pano.shape[0])
-                    zoom = far_bearings(camera, laser.xy, laser_z)
+                    # the frame's own pose; without odometry scan matching's last one (a frame behind)
+                    here = frame.robot_pose if has_odometry or last_matched is None else last_matched[1]
+                    zoom = far_looks.bearings(camera, stamp, here, laser.xy, laser_z)
                 job = pool.submit(detect_image, image_detector, pano, columns, zoom)
             t3 = time.perf_counter()
             pf = laser_frame(frame, stamp, (laser, laser_z, points, origins, owner))
@@ -647,6 +651,8 @@ def perceive(
                             body_maps.append(StaticMapBuilder(max_free_range=0.0, steady_scans=0))
                         body_maps[k].add(*body_scan)
                 t_map += time.perf_counter() - t3
+            if far_looks is not None and laser is not None:
+                far_looks.add(stamp, pf.robot_pose, laser.xy, laser_z)
             pending.append((frame, pf, job))
             hand_on(wait_for=in_flight)
             t0 = time.perf_counter()
@@ -682,13 +688,55 @@ def perceive(
 
 
 ZOOM_RANGE_M = (4.5, 11.0)  # laser detections this far from the base get a closer look by the camera
+ZOOM_MEMORY_S = 0.5  # ... and so do those of the frames this much older
+
+
+class FarLooks:
+    """Where the image detector should look closer: the laser detections :data:`ZOOM_RANGE_M` from the
+    base, in this frame and in the frames of the last ``memory_s`` before it.
+
+    The scanners miss most people 7 m away or more in a given scan (a few beams reach their legs), but
+    rarely in all the scans of half a second. Those of the earlier frames are kept in the odom frame and
+    brought into this frame's base frame; someone walking 1.5 m/s moves about 5° across the bearing in
+    0.5 s at 8 m, within a closer look's 18° (:meth:`ViewSweepDetector.zoom_views`).
+    """
+
+    def __init__(self, memory_s: float = ZOOM_MEMORY_S) -> None:
+        self.memory_ns = round(memory_s * 1e9)
+        self._recent: deque[tuple[int, FloatArray, FloatArray]] = deque()  # stamp, odom xy, heights
+
+    def add(self, stamp_ns: int, pose: Pose2, xy: FloatArray, z: FloatArray) -> None:
+        """Remember the far ones of a frame's laser detections ``xy`` (base frame at ``pose`` =
+        T_odom_base, scan-plane heights ``z``)."""
+        far = _far(xy)
+        if far.any():
+            self._recent.append((stamp_ns, pose.apply(xy[far]), np.asarray(z, dtype=np.float64)[far]))
+
+    def bearings(self, camera: Any, stamp_ns: int, pose: Pose2, xy: FloatArray, z: FloatArray) -> list[float]:
+        """Panorama azimuths (rad) to look closer at in the frame at ``stamp_ns`` and ``pose``: those of
+        its own far detections ``xy`` first, then those of the remembered ones."""
+        while self._recent and self._recent[0][0] < stamp_ns - self.memory_ns:
+            self._recent.popleft()
+        into_base = pose.inverse()
+        pts = np.concatenate(
+            [np.asarray(xy, dtype=np.float64).reshape(-1, 2)]
+            + [into_base.apply(w) for _, w, _ in self._recent]
+        )
+        heights = np.concatenate(
+            [np.asarray(z, dtype=np.float64).reshape(-1)] + [h for _, _, h in self._recent]
+        )
+        return far_bearings(camera, pts, heights) if len(pts) else []
+
+
+def _far(xy: FloatArray) -> NDArray[np.bool_]:
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    return (r >= ZOOM_RANGE_M[0]) & (r <= ZOOM_RANGE_M[1])
 
 
 def far_bearings(camera: Any, xy: FloatArray, z: FloatArray) -> list[float]:
     """Panorama azimuths (rad) of the laser detections ``xy`` ``(N, 2)`` (base frame, scan-plane heights
     ``z``) that lie within :data:`ZOOM_RANGE_M` of the base."""
-    r = np.hypot(xy[:, 0], xy[:, 1])
-    far = (r >= ZOOM_RANGE_M[0]) & (r <= ZOOM_RANGE_M[1])
+    far = _far(xy)
     if not far.any():
         return []
     uv, _ = camera.project(np.c_[xy[far], np.asarray(z, dtype=np.float64)[far]])

@@ -12,7 +12,7 @@ import studio.detect.image as image_detectors
 from studio.detect.image import ImageDetections, ImageDetectorError
 from studio.io import load_rig
 from studio.pipeline import LabelOptions
-from studio.pipeline.perceive import perceive
+from studio.pipeline.perceive import FarLooks, far_bearings, perceive
 
 
 class _Jittery:
@@ -145,7 +145,7 @@ def test_a_blind_sector_that_reads_inf_is_not_free_space():
 def test_far_laser_detections_give_the_bearings_to_look_closer_at():
     from studio.geometry import EquirectCamera
     from studio.geometry.se import Pose3
-    from studio.pipeline.perceive import ZOOM_RANGE_M, far_bearings
+    from studio.pipeline.perceive import ZOOM_RANGE_M
 
     camera = EquirectCamera(1920, 960, Pose3.from_xyz_rpy(0.1, 0.0, 1.1, 0.0, 0.0, 0.0), 0.0)
     xy = np.array([[6.0, 0.0], [0.0, 8.0], [3.0, 0.0], [-20.0, 0.0], [-7.0, -0.1]])
@@ -160,30 +160,67 @@ def test_far_laser_detections_give_the_bearings_to_look_closer_at():
 
 
 class _Zooming:
-    """A detector that can look closer (``windows``): records the bearings it was asked to look at."""
+    """A detector that can look closer (``windows``) and at part of the panorama (``looks_at_columns``):
+    records the bearings it was asked to look at and whether it looked at everything; it finds one
+    person at columns 40–45 % of the width, so the looks between whole ones are partial."""
 
     windows = True
+    looks_at_columns = True
 
     def __init__(self) -> None:
         self.zoom: list[list[float]] = []
+        self.whole: list[bool] = []
 
-    def detect(self, pano: np.ndarray, *, zoom: tuple[float, ...] = ()) -> ImageDetections:
+    def detect(
+        self, pano: np.ndarray, *, columns: np.ndarray | None = None, zoom: tuple[float, ...] = ()
+    ) -> ImageDetections:
         self.zoom.append(list(zoom))
+        self.whole.append(columns is None)
         h, w = pano.shape[:2]
-        return ImageDetections(np.zeros((0, 4)), np.zeros(0), None, w, h)
+        return ImageDetections(np.array([[w * 0.4, h * 0.3, w * 0.45, h * 0.7]]), np.ones(1), None, w, h)
 
 
 def test_the_image_detector_looks_closer_where_the_laser_found_someone_far(recording, monkeypatch):
     from studio.geometry import EquirectCamera
-    from studio.pipeline.perceive import far_bearings
 
     det = _Zooming()
     monkeypatch.setattr(image_detectors, "get_image_detector", lambda *a, **k: det)
     rig = load_rig(recording / "rig.yaml")
     frames, _ = perceive(recording / "recording.mcap", rig, LabelOptions())
-    looked = [f for f in frames if f.image is not None]
-    assert len(looked) == len(det.zoom)
+    assert sum(f.image is not None for f in frames) == len(det.zoom)
     camera = EquirectCamera(1920, 960, rig.camera.pose, rig.camera.lens_offset)
-    for f, asked in zip(looked, det.zoom, strict=True):
-        assert asked == pytest.approx(far_bearings(camera, f.laser.xy, f.laser_z))
+    far_looks, asked = FarLooks(), iter(det.zoom)
+    for f in frames:  # on whole and partial looks alike: this frame's far detections, then the last 0.5 s's
+        if f.image is not None:
+            expected = far_looks.bearings(camera, f.stamp_ns, f.robot_pose, f.laser.xy, f.laser_z)
+            own = far_bearings(camera, f.laser.xy, f.laser_z)
+            assert expected[: len(own)] == pytest.approx(own)
+            assert next(asked) == pytest.approx(expected)
+        far_looks.add(f.stamp_ns, f.robot_pose, f.laser.xy, f.laser_z)
     assert sum(len(z) for z in det.zoom) > 0  # someone is far away in this recording
+    assert any(z for z, whole in zip(det.zoom, det.whole, strict=True) if not whole)
+    assert sum(map(len, det.zoom)) > sum(
+        len(far_bearings(camera, f.laser.xy, f.laser_z)) for f in frames if f.image is not None
+    )  # the scans between the images found far people too
+
+
+def test_far_laser_detections_of_the_last_half_second_are_looked_at_where_they_are_now():
+    from studio.geometry import EquirectCamera
+    from studio.geometry.se import Pose2, Pose3
+    from studio.pipeline.perceive import ZOOM_MEMORY_S
+
+    camera = EquirectCamera(1920, 960, Pose3.identity(), 0.0)
+    looks = FarLooks()
+    z = np.zeros(1)
+    # 0.3 s ago, at the odom origin facing +x: someone 8 m ahead, someone 2 m ahead (too near to zoom)
+    looks.add(0, Pose2(0.0, 0.0, 0.0), np.array([[8.0, 0.0], [2.0, 0.0]]), np.zeros(2))
+    # now 1 m further and turned left by 90°: the far one is 7 m to the right
+    now = Pose2(1.0, 0.0, np.pi / 2)
+    (bearing,) = looks.bearings(camera, 300_000_000, now, np.zeros((0, 2)), np.zeros(0))
+    assert bearing == pytest.approx(far_bearings(camera, np.array([[0.0, -7.0]]), z)[0])
+    # the frame's own far detections come first
+    mine = looks.bearings(camera, 300_000_000, now, np.array([[0.0, 6.0]]), z)
+    assert mine == pytest.approx(far_bearings(camera, np.array([[0.0, 6.0], [0.0, -7.0]]), np.zeros(2)))
+    # forgotten once older than the memory
+    late = round(ZOOM_MEMORY_S * 1e9) + 1
+    assert looks.bearings(camera, late, now, np.zeros((0, 2)), np.zeros(0)) == []
