@@ -57,8 +57,7 @@ def test_run_directory_has_every_contract_file(runs: dict[str, dict]) -> None:
     info = json.loads((run / "run.json").read_text())
     assert {"timings_s", "versions", "options", "counts"} <= set(info)
     points = read_review(run / "review.jsonl")
-    # since session 74's closer looks this recording may have none; tests/labels/test_review.py makes them
-    assert info["counts"]["review_points"] == len(points)
+    assert info["counts"]["review_points"] == len(points) > 0
     frames = {f.frame: {p.id for p in f.people} for f in read_labels(run / "labels.jsonl").frames}
     assert all(set(p.ids) <= frames[p.frame] for p in points)  # each point names tracks of its frame
     coco = json.loads((run / "boxes_coco.json").read_text())
