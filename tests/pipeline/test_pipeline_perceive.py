@@ -16,8 +16,10 @@ from studio.pipeline.perceive import FarLooks, far_bearings, perceive
 
 
 class _Jittery:
-    """Takes 0–40 ms at random (the first call 0.5 s); its one box's score is the panorama's mean
-    intensity, so a result handed on with the wrong frame shows. Raises on call ``fail_at``."""
+    """Takes 0–40 ms at random; its one box's score is the panorama's mean intensity, so a result handed
+    on with the wrong frame shows. Raises on call ``fail_at``. The first call lasts until the second one
+    has begun (at most 10 s; 0.5 s where the detector is not thread-safe and no second call may begin), so
+    that the next panorama arrives while it runs however loaded the machine is."""
 
     def __init__(self, fail_at: int | None = None, *, thread_safe: bool = False) -> None:
         self.fail_at = fail_at
@@ -27,19 +29,24 @@ class _Jittery:
         self.calls = 0
         self.lock = threading.Lock()
         self.rng = np.random.default_rng(0)
+        self.second_began = threading.Event()
 
     def detect(self, pano: np.ndarray) -> ImageDetections:
         with self.lock:
             k = self.calls
             self.calls += 1
-            # the first one long enough that the next panorama arrives while it runs
-            wait = 0.5 if k == 0 else float(self.rng.uniform(0.0, 0.04))
+            wait = float(self.rng.uniform(0.0, 0.04))
         if k == self.fail_at:
             raise ImageDetectorError("cannot run the network on this panorama")
         with self.lock:
             self.running += 1
             self.most_at_once = max(self.most_at_once, self.running)
-        time.sleep(wait)
+        if k == 1:
+            self.second_began.set()
+        if k == 0:
+            self.second_began.wait(10.0 if self.thread_safe else 0.5)
+        else:
+            time.sleep(wait)
         with self.lock:
             self.running -= 1
         h, w = pano.shape[:2]
