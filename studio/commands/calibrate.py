@@ -59,8 +59,8 @@ def _extrinsics(args: argparse.Namespace) -> int:
     from studio.calibrate.report import write_report
     from studio.viz.calibration import write_calibration_rrd
 
-    out = out_file(args.out, "--out")
-    json_out = out_file(args.json, "--json")
+    out = out_file(args.out, "--out", inputs=[args.correspondences])
+    json_out = out_file(args.json, "--json", inputs=[args.correspondences, args.out])
     if args.folds < 2:
         raise StudioError(f"--folds must be at least 2, got {args.folds}")
     W, H = args.image_size
@@ -202,7 +202,7 @@ def _project(args: argparse.Namespace) -> int:
     from studio.calibrate.csvio import read_points, write_uv
     from studio.calibrate.extrinsics import project_points
 
-    out = out_file(args.out, "--out")
+    out = out_file(args.out, "--out", inputs=[args.points, args.rig])
     cam = load_camera(args.rig)
     xyz = read_points(args.points)
     W, H = args.image_size

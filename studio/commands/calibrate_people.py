@@ -46,8 +46,9 @@ def run_people(args: argparse.Namespace) -> int:
     recording = Path(args.recording)
     if not recording.exists():
         raise StudioError(f"{recording}: no such recording")
-    out = out_file(args.out, "--out")
-    json_out = out_file(getattr(args, "json", None), "--json")
+    # --out may be --rig itself (the rig refined in place), never the recording
+    out = out_file(args.out, "--out", inputs=[recording])
+    json_out = out_file(getattr(args, "json", None), "--json", inputs=[recording, args.rig, args.out])
     for name in ("max_offset_s", "image_period_s", "max_std_s", "max_yaw_deg"):
         value = getattr(args, name, None)
         if value is not None and not float(value) > 0:

@@ -82,8 +82,8 @@ def run_targets(args: argparse.Namespace) -> int:
     target = str(getattr(args, "target", "ball"))
     if target not in ("ball", "board"):
         raise TargetError(f"--target must be ball or board, got '{target}'")
-    out_file(args.out, "--out")
-    out_file(getattr(args, "json", None), "--json")
+    out_file(args.out, "--out", inputs=[args.recording, args.rig])
+    out_file(getattr(args, "json", None), "--json", inputs=[args.recording, args.rig, args.out])
     rig = load_rig(args.rig)
     if rig.camera is None:
         raise TargetError(f"{args.rig}: the rig has no camera")
@@ -167,7 +167,7 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     from studio.io import load_rig, open_recording
 
     src = Path(args.source)
-    out_file(getattr(args, "json", None), "--json")
+    out_file(getattr(args, "json", None), "--json", inputs=[src, getattr(args, "rig", None)])
     pattern = tuple(getattr(args, "pattern", (8, 5)))
     kw = {"pattern": (int(pattern[0]), int(pattern[1])), "square": float(getattr(args, "square", 0.07)),
           "face_size": getattr(args, "face_size", None)}  # fmt: skip

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     for p in paths:  # fail before loading the model
         if not Path(p).is_file():
             raise StudioError(f"image not found: {p}")
-    out = out_file(args.out, "--out")
+    out = out_file(args.out, "--out", inputs=paths)
     detector = get_image_detector(args.image_detector)
     lines = []
     show = sys.stderr.isatty() and len(paths) > 1

@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
         raise StudioError(f"--radius must be a positive number of metres, got {radius}")
     if args.max_range is not None and args.frame != "base":
         raise StudioError("--max-range is measured in the base frame: use it without --frame odom")
-    out = out_file(args.json, "--json")
+    out = out_file(args.json, "--json", inputs=[args.pred, args.gt])
     ev = evaluate(args.pred, args.gt, radius=radius, frame=args.frame, max_range=args.max_range)
     where = "" if args.frame == "base" else " (positions in the odom frame)"
     print(f"studio evaluate: {args.pred} vs ground truth {args.gt}{where}")

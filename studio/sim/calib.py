@@ -37,7 +37,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from studio.atomic import atomic_dir
+from studio.atomic import MANIFEST, atomic_dir
 from studio.geometry.equirect import EquirectCamera
 from studio.geometry.se import Pose2, Pose3
 from studio.sim.base import LASER_Z, WALL_HEIGHT, SimResult, SimRig, World
@@ -247,7 +247,7 @@ def _check_args(scenario: str, seconds: float | None, seed: int, out: Path) -> t
         raise SimError(f"--seed must be a non-negative integer, got {seed!r}")
     if out.exists() and not out.is_dir():
         raise SimError(f"--out {out}: exists and is not a directory")
-    if out.is_dir() and any(p.name not in CALIB_OUTPUT_FILES for p in out.iterdir()):
+    if out.is_dir() and any(p.name not in (*CALIB_OUTPUT_FILES, MANIFEST) for p in out.iterdir()):
         raise SimError(
             f"--out {out}: holds other files; give a new directory (or an earlier simulate output)"
         )

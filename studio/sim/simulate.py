@@ -39,7 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from studio.atomic import atomic_dir
+from studio.atomic import MANIFEST, atomic_dir
 from studio.geometry.se import Pose2, Pose3
 from studio.labels import LabelFrame, LabelPerson
 from studio.labels.formats import write_labels_jsonl, write_labels_yaml
@@ -138,7 +138,7 @@ def simulate(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise SimError(f"--out {out}: exists and is not a directory")
-    if out.is_dir() and any(p.name not in OUTPUT_FILES for p in out.iterdir()):
+    if out.is_dir() and any(p.name not in (*OUTPUT_FILES, MANIFEST) for p in out.iterdir()):
         raise SimError(
             f"--out {out}: holds other files; give a new directory (or an earlier simulate output)"
         )

@@ -85,3 +85,37 @@ def test_help_marks_commands_that_are_not_built_yet() -> None:
         marked = f"not built yet (issue #{issue})" in " ".join(out.split())
         if importlib.util.find_spec(module) is None:
             assert marked, name
+
+
+def test_an_output_inside_a_file_is_one_line_exit_2(tmp_path, capsys) -> None:
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "r.mcap").write_bytes(b"")
+    out = tmp_path / "afile" / "run"
+    code = main(["label", str(tmp_path / "r.mcap"), "--rig", str(tmp_path / "rig.yaml"), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1, err
+    assert "afile is not a folder" in err
+
+
+def test_sigterm_leaves_no_half_written_output(tmp_path) -> None:
+    """A job scheduler's time limit or `kill` stops a command as Ctrl-C does: one line, exit 143, and
+    neither the output nor its temporary folder is left behind."""
+    import time
+
+    out = tmp_path / "sim"
+    cmd = [sys.executable, "-m", "studio.cli", "simulate", "--scenario", "moving", "--seconds", "60"]
+    proc = subprocess.Popen([*cmd, "--out", str(out)], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp_path.glob(".sim.*.tmp")) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, "the simulation ended before it could be stopped"
+        proc.terminate()
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert "terminated" in err
+    assert "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []

@@ -97,3 +97,54 @@ def test_out_file_names_what_is_wrong_before_any_work(tmp_path) -> None:
         ro.mkdir(mode=0o500)
         with pytest.raises(StudioError, match="cannot write in"):
             out_file(ro / "x.csv", "--out")
+    (tmp_path / "in.jsonl").write_text("ground truth")
+    with pytest.raises(StudioError, match=r"^--json .*: is an input of this command"):
+        out_file(tmp_path / "." / "in.jsonl", "--json", inputs=[None, tmp_path / "in.jsonl"])
+    assert (tmp_path / "in.jsonl").read_text() == "ground truth"
+
+
+def test_an_earlier_output_with_a_file_added_inside_or_edited_is_kept(tmp_path) -> None:
+    """Only the top-level names were checked once: a file the user put in an output's sub-folder (the
+    exported frames) was deleted with it, and so were edits to its files."""
+    outputs = ("run.json", "frames", "DATASET.md", "metrics.json")
+    out = tmp_path / "run"
+
+    def write() -> None:
+        with atomic_dir(out, outputs=outputs) as d:
+            (d / "run.json").write_text("{}")
+            (d / "frames").mkdir()
+            (d / "frames" / "000000.jpg").write_bytes(b"jpeg")
+            (d / "DATASET.md").write_text("card")
+
+    write()
+    (out / "metrics.json").write_text("written later by the same command")
+    write()  # an earlier output, with a file of its own written after it: replaced
+    assert not (out / "metrics.json").exists()
+    (out / "frames" / "my_labels.xml").write_text("mine")
+    with pytest.raises(StudioError, match=r"frames/my_labels\.xml \(added\)"):
+        write()
+    assert (out / "frames" / "my_labels.xml").read_text() == "mine"
+    (out / "frames" / "my_labels.xml").unlink()
+    (out / "DATASET.md").write_text("card, with my notes")
+    with pytest.raises(StudioError, match=r"DATASET\.md \(edited\)"):
+        write()
+    assert (out / "DATASET.md").read_text() == "card, with my notes"
+
+
+def test_a_users_folder_beside_the_output_is_not_touched(tmp_path) -> None:
+    outputs = ("run.json",)
+    out = tmp_path / "run"
+    with atomic_dir(out, outputs=outputs) as d:
+        (d / "run.json").write_text("{}")
+    (tmp_path / ".run.old").mkdir()
+    (tmp_path / ".run.old" / "important.txt").write_text("x")
+    with atomic_dir(out, outputs=outputs) as d:  # replaces the earlier output
+        (d / "run.json").write_text("{}")
+    assert (tmp_path / ".run.old" / "important.txt").read_text() == "x"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".run.old", "run"]
+
+
+def test_an_output_whose_folder_is_a_file_is_one_error_before_any_work(tmp_path) -> None:
+    (tmp_path / "afile").write_text("f")
+    with pytest.raises(StudioError, match=r"afile is not a folder"), atomic_dir(tmp_path / "afile" / "run"):
+        pytest.fail("must not start")

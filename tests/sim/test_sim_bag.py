@@ -91,7 +91,7 @@ def test_rig_yaml_has_the_true_sensor_poses(moving_sim: SimResult) -> None:
 
 def test_output_directory_has_exactly_the_contract_files(moving_sim: SimResult) -> None:
     names = sorted(p.name for p in Path(moving_sim.out).iterdir())
-    assert names == ["ground_truth.jsonl", "ground_truth.yaml", "recording.mcap", "rig.yaml"]
+    assert names == [".studio-files", "ground_truth.jsonl", "ground_truth.yaml", "recording.mcap", "rig.yaml"]
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE(moving_sim.out.stat().st_mode) == 0o777 & ~umask

@@ -32,6 +32,7 @@ def ball_sim(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_calib_ball_writes_recording_nominal_rig_and_truth(ball_sim: Path) -> None:
     assert sorted(p.name for p in ball_sim.iterdir()) == [
+        ".studio-files",
         "recording.mcap",
         "rig.yaml",
         "targets.jsonl",

@@ -96,7 +96,7 @@ def test_cli_simulate_writes_the_contract_files_and_reports_errors(
         == 0
     )
     assert sorted(p.name for p in (tmp_path / "r").iterdir()) == [
-        "ground_truth.jsonl", "ground_truth.yaml", "recording.mcap", "rig.yaml",
+        ".studio-files", "ground_truth.jsonl", "ground_truth.yaml", "recording.mcap", "rig.yaml",
     ]  # fmt: skip
     assert "MB/min" in capsys.readouterr().out
     assert main(["simulate", "--scenario", "nope", "--out", str(tmp_path / "n")]) == 2
