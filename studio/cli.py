@@ -44,9 +44,25 @@ def _positive_float(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
-    if not v > 0:
+    if not 0 < v < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, got '{text}'")
     return v
+
+
+def _in_range(lo: float, hi: float, *, integer: bool = False) -> Callable[[str], float]:
+    """An argparse type: a number (``integer``: a whole one) from ``lo`` to ``hi``."""
+
+    def parse(text: str) -> float:
+        try:
+            v: float = int(text) if integer else float(text)
+        except ValueError:
+            kind = "a whole number" if integer else "a number"
+            raise argparse.ArgumentTypeError(f"expected {kind}, got '{text}'") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"expected a number from {lo:g} to {hi:g}, got '{text}'")
+        return v
+
+    return parse
 
 
 def _non_negative_float(text: str) -> float:
@@ -193,7 +209,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--ball-radius", type=_positive_float, default=0.25, help="ball radius, m (default 0.25)")
     c.add_argument("--board-width", type=_positive_float, default=0.8, help="board width, m (default 0.8)")
     c.add_argument(
-        "--max-offset", type=float, default=0.5, help="search the camera time offset within ±S s (0: off)"
+        "--max-offset",
+        type=_in_range(0.0, 30.0),
+        default=0.5,
+        help="search the camera time offset within ±S s (0: off; at most 30)",
     )
     c.add_argument("--include-moving", action="store_true", help="also keep samples while the target moves")
     c.add_argument("--json", default=None, help="also write a report as JSON")
@@ -202,8 +221,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--rig", default=None, help="rig.yaml when SOURCE is a recording")
     c.add_argument("--pattern", type=_pattern, default=(8, 5), help="inner corners COLSxROWS (default 8x5)")
     c.add_argument("--square", type=_positive_float, default=0.07, help="square size, m (default 0.07)")
-    c.add_argument("--face-size", type=int, default=None, help="cube-face size, px (default: from the image)")
-    c.add_argument("--every", type=int, default=1, help="use every n-th panorama")
+    c.add_argument(
+        "--face-size",
+        type=_in_range(32, 4096, integer=True),
+        default=None,
+        help="cube-face size, px, 32-4096 (default: from the image)",
+    )
+    c.add_argument(
+        "--every", type=_in_range(1, 10**6, integer=True), default=1, help="use every n-th panorama"
+    )
     c.add_argument("--json", default=None, help="also write the report as JSON")
     c = csub.add_parser("people", help="camera pose and camera-laser latency from people (no target)")
     c.add_argument("--recording", required=True, help="any recording with people, camera and lasers")

@@ -119,3 +119,21 @@ def test_sigterm_leaves_no_half_written_output(tmp_path) -> None:
     assert "terminated" in err
     assert "Traceback" not in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["calibrate", "targets", "r.mcap", "--rig", "r.yaml", "--out", "c.csv", "--max-offset", bad]
+        for bad in ("nan", "inf", "-1", "1e9")
+    ]
+    + [["calibrate", "intrinsics", "pans", "--face-size", bad] for bad in ("0", "100000", "12.5")]
+    + [["calibrate", "intrinsics", "pans", "--every", bad] for bad in ("0", "-1")]
+    + [["calibrate", "people", "--recording", "r", "--rig", "r", "--out", "o", "--max-yaw-deg", "inf"]],
+)
+def test_out_of_range_calibration_options_exit_2(capsys, args: list[str]) -> None:
+    """They once gave tracebacks (nan, inf), a 74 GiB allocation (a face of 100000 px) or nonsense."""
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(args)
+    assert exc.value.code == 2
+    assert "expected" in capsys.readouterr().err
