@@ -28,6 +28,7 @@ import yaml
 
 from studio.atomic import atomic_write_text, out_file
 from studio.errors import StudioError
+from studio.yamlload import load_yaml
 
 __all__ = ["load_camera", "load_camera_pose", "run"]
 
@@ -174,7 +175,7 @@ def load_camera(path: str) -> Any:
 
     p = Path(path)
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+        data = load_yaml(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise StudioError(f"rig file not found: {p}") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -143,8 +143,17 @@ def run(args: argparse.Namespace) -> int:
         **({} if args.min_walk is None else {"min_walk_m": args.min_walk}),
     )
     gt = Path(args.ground_truth) if args.ground_truth else None
-    if gt is not None and not gt.is_file():
-        raise StudioError(f"{gt}: no such ground-truth file")
+    if gt is not None:
+        if args.no_rrd:
+            raise StudioError(
+                "--ground-truth is shown beside the labels in the Rerun recording, which --no-rrd leaves "
+                "out: drop one of them (studio evaluate compares a run with ground truth)"
+            )
+        if not gt.is_file():
+            raise StudioError(f"{gt}: no such ground-truth file")
+        from studio.labels import read_labels
+
+        read_labels(gt)  # a broken file is one error now, not after the whole recording is labeled
     info = run_label(
         Path(args.recording),
         Path(args.rig),

@@ -127,6 +127,7 @@ def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | No
             rmax = float(np.finfo(np.float32).max)
         if ranges.size and da == 0.0:
             raise ValueError("angle_increment is 0")
+        _check_span(msg, a0, da, ranges.size)
         # the time between beams (ROS: beam i at the header stamp + i · time_increment); a sweep said to last
         # over a second is a driver's placeholder, not a time
         ti = float(getattr(msg, "time_increment", 0.0) or 0.0)
@@ -135,6 +136,21 @@ def decode_scan(msg: Any, stamp_ns: int | None = None, *, cloud: CloudSlice | No
         return LaserScan(stamp, frame, a0, da, ranges, rmin, rmax, inten, ti)
     except (AttributeError, TypeError, ValueError) as exc:
         raise RecordingError(f"not a decodable laser scan: {exc}") from None
+
+
+def _check_span(msg: Any, a0: float, da: float, n: int) -> None:
+    """Raise ValueError where a LaserScan's ranges at its increment span more than a full turn (a driver
+    or a recording tool that wrote too many: no bearing would be right). ``angle_max`` is not checked
+    against them: ROS's own tools take beam i at angle_min + i · angle_increment and never read it, so
+    a driver's wrong angle_max goes unnoticed and must not make its recording unreadable here."""
+    span = abs(da) * (n - 1)
+    if span > 2.0 * math.pi + abs(da) + 1e-9:
+        said = getattr(msg, "angle_max", None)
+        told = f" (angle_min to angle_max: {math.degrees(float(said) - a0):.1f}°)" if said is not None else ""
+        raise ValueError(
+            f"{n} ranges {math.degrees(abs(da)):.3g}° apart span {math.degrees(span):.1f}°, more than a "
+            f"full turn{told}"
+        )
 
 
 def _first_echoes(values: Any) -> np.ndarray:

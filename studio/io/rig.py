@@ -38,6 +38,7 @@ from studio.atomic import atomic_write_text
 from studio.geometry.se import Pose3
 from studio.io.base import CloudSlice
 from studio.io.errors import RigError
+from studio.yamlload import load_yaml
 
 __all__ = [
     "MAX_LENS_OFFSET_M",
@@ -345,7 +346,7 @@ def load_rig(path: str | os.PathLike[str]) -> Rig:
     except (OSError, UnicodeDecodeError) as exc:
         raise RigError(f"cannot read rig file {p}: {exc}") from None
     try:
-        data = yaml.safe_load(text)
+        data = load_yaml(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""

@@ -274,18 +274,19 @@ class _Motion:
             stamps = array("q")  # compact: 8 + 24 bytes per sample
             vals = array("d")
             children: set[str] = set()
-            bad = 0
+            bad, why = 0, ""
             for raw in rec.messages([topic]):
                 try:
                     od = decode_odometry(rec.decode(raw), raw.log_ns)
-                except RecordingError:
+                except RecordingError as exc:
                     bad += 1
+                    why = why or str(exc)
                     continue
                 stamps.append(od.stamp_ns)
                 vals.extend((od.pose.x, od.pose.y, od.pose.yaw))
                 children.add(od.child_frame_id)
             if bad:
-                report.warn(f"{bad} odometry messages on {topic} could not be decoded")
+                report.warn(f"{bad} odometry messages on {topic} could not be decoded (the first: {why})")
             if not stamps:
                 report.warn(f"odometry topic {topic} has no usable messages")
             else:

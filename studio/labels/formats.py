@@ -27,6 +27,7 @@ from studio.atomic import atomic_write_text
 from studio.geometry.se import Pose2
 from studio.labels.base import LabelFrame, LabelPerson, LabelSet
 from studio.labels.errors import LabelError
+from studio.yamlload import load_yaml, yaml_problem
 
 __all__ = [
     "dumps_jsonl",
@@ -45,7 +46,6 @@ __all__ = [
 _FRAME_KEY = re.compile(r"^frame\s+(-?\d+)$")
 _ID_KEY = re.compile(r"^id(-?\d+)$")
 _PERSON_KEYS = {"id", "x", "y", "x_odom", "y_odom", "cov", "source", "box", "score"}
-_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
 def _num(v: float, nd: int = 3) -> str:
@@ -230,9 +230,9 @@ def read_labels_yaml(path: str | os.PathLike[str]) -> LabelSet:
     """Read the thesis YAML format (``frame N:`` → list of ``idK: {x, y}``)."""
     text = _open_text(path)
     try:
-        data = yaml.load(text, Loader=_SafeLoader)
+        data = load_yaml(text)
     except yaml.YAMLError as exc:
-        raise LabelError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+        raise LabelError(f"{path}: not valid YAML ({yaml_problem(exc)})") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):

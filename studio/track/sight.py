@@ -36,6 +36,7 @@ HALF_WIDTH_M = 0.25  # a place is a person's width, and what a walk at other spe
 MARGIN_M = 0.4  # a beam went this far past the place (a body or a leg stops it short)
 MIN_RANGE_M = 0.5  # nearer than this to a scanner a place is not judged (the robot's body, mounts)
 MAX_FRAME_S = 0.25  # one frame vouches for at most this long (a gap in the recording is not seen)
+_FAR_M = 6.0e4  # the farthest free range stored (float16 holds up to 65504)
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,8 @@ def scan_view(scans: Iterable[tuple[FloatArray, FloatArray]]) -> ScanView | None
             np.minimum.at(best, k, np.hypot(d[:, 0], d[:, 1]))
         best[~np.isfinite(best)] = np.nan
         origins.append(o)
-        ranges.append(best.astype(np.float16))
+        # float16 holds up to 65504 m: farther is as good as that (a scanner without a range limit)
+        ranges.append(np.minimum(best, _FAR_M).astype(np.float16))
     if not origins:
         return None
     return ScanView(np.array(origins), np.array(ranges))

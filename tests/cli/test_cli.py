@@ -137,3 +137,27 @@ def test_out_of_range_calibration_options_exit_2(capsys, args: list[str]) -> Non
         build_parser().parse_args(args)
     assert exc.value.code == 2
     assert "expected" in capsys.readouterr().err
+
+
+def test_a_ground_truth_label_cannot_use_is_one_line_exit_2_before_any_work(tmp_path, capsys) -> None:
+    """It was not read at all with --no-rrd, and read only after the whole recording was labeled without."""
+    (tmp_path / "r.mcap").write_bytes(b"")
+    (tmp_path / "gt.jsonl").write_text('{"frame": 0, "people": [{"id": "x"}]}\n')
+    base = [
+        "label",
+        str(tmp_path / "r.mcap"),
+        "--rig",
+        str(tmp_path / "rig.yaml"),
+        "--out",
+        str(tmp_path / "run"),
+    ]
+    for extra, message in (
+        (["--no-rrd"], "--no-rrd leaves out"),
+        ([], "gt.jsonl"),
+    ):
+        code = main([*base, "--ground-truth", str(tmp_path / "gt.jsonl"), *extra])
+        err = capsys.readouterr().err
+        assert code == 2
+        assert err.count("\n") == 1, err
+        assert message in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gt.jsonl", "r.mcap"]

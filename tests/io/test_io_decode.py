@@ -130,6 +130,25 @@ def test_zero_stamp_uses_fallback_and_scan_checks() -> None:
         decode_scan(NS(header=msg.header))
 
 
+def test_ranges_over_more_than_a_full_turn_are_refused() -> None:
+    """Twice the ranges of a 270° scanner would put every beam at a wrong bearing, over 540°."""
+    n = 1081
+    da = np.radians(270.0) / (n - 1)
+    msg = NS(
+        header=NS(stamp=_stamp(2), frame_id="laser"), angle_min=-np.radians(135.0),
+        angle_max=np.radians(135.0), angle_increment=da, range_min=0.1, range_max=5.0, ranges=[1.0] * n,
+    )  # fmt: skip
+    assert len(decode_scan(msg)) == n
+    msg.ranges = [1.0] * (2 * n)
+    with pytest.raises(RecordingError, match=r"2162 ranges .* span 540\.2°, more than a full turn"):
+        decode_scan(msg)
+    msg.ranges = [1.0] * (n // 2)  # half: as ROS's tools would, beams at angle_min + i · increment
+    assert len(decode_scan(msg)) == n // 2
+    full = 2 * np.pi / 360
+    msg.angle_increment, msg.ranges = -full, [1.0] * 361  # a full turn and its first beam again: fine
+    assert len(decode_scan(msg)) == 361
+
+
 def test_low_cost_scanner_conventions() -> None:
     # RPLidar-like drivers: 0.0 for "no return" with range_min 0; a range_max that cannot hold (0 or below
     # range_min) means no known limit

@@ -23,6 +23,27 @@ sync: {max_dt_s: 0.05, camera_latency_s: 0.0}
 """
 
 
+def test_numbers_written_with_an_exponent_are_numbers(tmp_path: Path) -> None:
+    """YAML 1.1 (PyYAML) read ``5e-2`` as a string, and the rig was refused as "not a number"."""
+    p = tmp_path / "rig.yaml"
+    text = DESIGN_EXAMPLE.replace("max_dt_s: 0.05", "max_dt_s: 5e-2").replace("z: 1.15", "z: 115e-2")
+    assert "5e-2" in text
+    assert "115e-2" in text
+    p.write_text(text)
+    rig = load_rig(p)
+    assert rig.sync.max_dt_s == pytest.approx(0.05)
+    assert rig.camera is not None
+    assert rig.camera.pose is not None
+    np.testing.assert_allclose(rig.camera.pose.t, (0, 0, 1.15))
+
+
+def test_a_key_given_twice_is_refused(tmp_path: Path) -> None:
+    p = tmp_path / "rig.yaml"
+    p.write_text(DESIGN_EXAMPLE + "base_frame: laser\n")
+    with pytest.raises(RigError, match=r"\(line 10, column 1\): the key 'base_frame' is given twice"):
+        load_rig(p)
+
+
 def test_design_example_loads(tmp_path: Path) -> None:
     p = tmp_path / "rig.yaml"
     p.write_text(DESIGN_EXAMPLE)

@@ -99,3 +99,13 @@ def test_bad_files_give_one_clear_error(tmp_path, name: str, text: str, message:
 def test_missing_file(tmp_path) -> None:
     with pytest.raises(LabelError, match="no such file"):
         read_labels(tmp_path / "nope.jsonl")
+
+
+def test_a_frame_listed_twice_in_yaml_is_refused(tmp_path) -> None:
+    """The later entry once won silently: a hand-edited ground truth lost a frame's people."""
+    p = tmp_path / "gt.yaml"
+    p.write_text("frame 0:\n  - id1: {x: 1.0, y: 2.0}\nframe 0:\n  - id2: {x: 3e-1, y: 2.0}\n")
+    with pytest.raises(LabelError, match=r"the key 'frame 0' is given twice \(line 3, column 1\)"):
+        read_labels(p)
+    p.write_text("frame 0:\n  - id1: {x: 1.0, y: 2.0}\nframe 1:\n  - id2: {x: 3e-1, y: 2.0}\n")
+    assert read_labels(p).frames[1].people[0].x == pytest.approx(0.3)  # an exponent is a number

@@ -32,6 +32,21 @@ def fan(origin=(0.0, 0.0), wall_m=6.0, step_deg=0.25, fov=(-135.0, 135.0), legs=
     return ends, o
 
 
+def test_a_scanner_without_a_range_limit_is_stored_without_overflow():
+    """A scan whose range_max is unknown (NaN or none) has free beams out to float32's largest range:
+    stored as 60 km, with no numpy overflow warning on the user's console."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        view = scan_view([fan(wall_m=float(np.finfo(np.float32).max))])
+    assert view is not None
+    seen = view.ranges[np.isfinite(view.ranges)]
+    assert len(seen) >= 268  # the 270° the fan covers
+    assert np.all(seen == np.float16(6.0e4))
+    assert view.sees_empty(np.array([50.0, 0.0]))
+
+
 def test_a_place_the_beams_went_through_is_seen_empty():
     view = scan_view([fan()])
     assert view is not None
