@@ -62,6 +62,9 @@ def _extrinsics(args: argparse.Namespace) -> int:
 
     out = out_file(args.out, "--out", inputs=[args.correspondences])
     json_out = out_file(args.json, "--json", inputs=[args.correspondences, args.out])
+    stem = out.with_suffix("") if out.suffix else out
+    for report in ("_report.txt", "_report.png", "_report.rrd"):  # written beside --out
+        out_file(stem.with_name(stem.name + report), "--out", inputs=[args.correspondences, args.out])
     if args.folds < 2:
         raise StudioError(f"--folds must be at least 2, got {args.folds}")
     W, H = args.image_size
@@ -116,14 +119,13 @@ def _extrinsics(args: argparse.Namespace) -> int:
 
     text = "# studio calibrate extrinsics: camera pose T_base_cam (metres, radians)\n"
     text += yaml.safe_dump(calib, sort_keys=False, default_flow_style=None, allow_unicode=True)
-    try:
-        atomic_write_text(out, text)
-        stem = out.with_suffix("") if out.suffix else out
+    try:  # the calibration last: a report that cannot be written leaves no new calibration behind
         txt, png = write_report(stem, cv, xyz, uv, source=str(args.correspondences), labels=labels)
         rrd = stem.with_name(stem.name + "_report.rrd")
         write_calibration_rrd(rrd, cv, xyz, uv)
         if json_out is not None:
             atomic_write_text(json_out, json.dumps(metrics, indent=2) + "\n")
+        atomic_write_text(out, text)
     except OSError as exc:
         raise StudioError(f"cannot write the calibration output: {exc}") from None
     print(

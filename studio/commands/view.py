@@ -9,6 +9,7 @@ import shutil
 import signal
 from pathlib import Path
 
+from studio.atomic import out_file
 from studio.errors import StudioError
 
 __all__ = ["default_blueprint", "run"]
@@ -34,9 +35,10 @@ def run(args: argparse.Namespace) -> int:
     if args.web and args.screenshot:
         raise StudioError("--web and --screenshot exclude each other")
     rrd = resolve_rrd(args.run)
+    shot = out_file(args.screenshot, "--screenshot", inputs=[rrd])  # before the viewer starts
     name = args.blueprint or default_blueprint(rrd)
-    if args.screenshot:
-        res = screenshot(rrd, Path(args.screenshot), blueprint_name=name)
+    if shot is not None:
+        res = screenshot(rrd, shot, blueprint_name=name)
         print(f"screenshot of {rrd} with blueprint '{name}' → {res.png}")
         for line in res.errors():
             print(f"view report: {line}")

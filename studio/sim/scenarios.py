@@ -120,4 +120,7 @@ def get_scenario(name: str) -> Scenario:
     try:
         return SCENARIOS[name]
     except KeyError:
-        raise SimError(f"unknown scenario '{name}' (choose from {', '.join(SCENARIOS)})") from None
+        from studio.sim.calib import CALIB_SCENARIOS  # beside the people scenarios: calibration ones
+
+        known = ", ".join([*SCENARIOS, *CALIB_SCENARIOS])
+        raise SimError(f"unknown scenario '{name}' (choose from {known})") from None

@@ -316,3 +316,17 @@ def test_bad_options_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
         == 0
     )
     assert "not 2:1" in capsys.readouterr().out
+
+
+def test_a_report_path_taken_by_a_folder_is_one_error_before_anything_is_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The calibration and the text report were written, then the PNG failed with a temporary file's name."""
+    xyz, uv, _bad = make_points()
+    csv = write_csv(tmp_path / "corr.csv", xyz, uv)
+    (tmp_path / "calib_report.png").mkdir()
+    assert run_cli(*extrinsics_args(csv, tmp_path / "calib.yaml")) == 2
+    err = capsys.readouterr().err
+    assert "calib_report.png: is a directory" in err
+    assert err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calib_report.png", "corr.csv"]

@@ -103,6 +103,7 @@ def test_cli_simulate_writes_the_contract_files_and_reports_errors(
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0
     assert "unknown scenario" in err
+    assert "calib-ball" in err  # the calibration scenarios are named too
 
 
 def test_a_tilted_camera_is_refused(tmp_path: Path) -> None:

@@ -46,6 +46,22 @@ def test_truncated_rrd_and_empty_run_dir(tmp_path: Path, capsys: pytest.CaptureF
     assert "no recording.rrd" in capsys.readouterr().err
 
 
+def test_a_screenshot_path_that_cannot_be_written_is_one_error_before_the_viewer_starts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    syn = vs.build(tmp_path, with_gt=False)
+    vs.log_run(tmp_path / "recording.rrd", syn)
+    (tmp_path / "afile").write_text("x")
+    for shot, message in (
+        (tmp_path / "afile" / "x.png", "afile is not a folder"),
+        (tmp_path, "is a directory"),
+    ):
+        assert main(["view", str(tmp_path / "recording.rrd"), "--screenshot", str(shot)]) == 2
+        err = capsys.readouterr().err
+        assert message in err
+        assert err.count("\n") == 1
+
+
 def test_unknown_blueprint_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["view", str(tmp_path), "--blueprint", "nope"]) == 2
     assert "known: review, laser, calibration, compare" in capsys.readouterr().err
