@@ -192,6 +192,11 @@ def _images(
             pano = decode_panorama(msg, raw.log_ns)
         except RecordingError:
             continue
+        if pano.width != 2 * pano.height:
+            raise PeopleCalibrationError(
+                f"{rec.path}: the camera's images are {pano.width}×{pano.height} px; an equirectangular "
+                "panorama is twice as wide as high (2:1)"
+            )
         last, size = stamp, (pano.width, pano.height)
         out.append(image_observation(stamp, detector.detect(pano.image)))
         if progress is not None:

@@ -106,7 +106,7 @@ def iter_panoramas(rec: Recording, rig: Rig, *, every: int = 1) -> Iterator[Pano
     """The camera's panoramas in log order (every ``every``-th one).
 
     Raises:
-        TargetError: the rig has no camera or its topic is not in the recording.
+        TargetError: the rig has no camera or its topic is not in the recording, or an image is not 2:1.
     """
     from studio.io.decode import decode_panorama
 
@@ -116,7 +116,13 @@ def iter_panoramas(rec: Recording, rig: Rig, *, every: int = 1) -> Iterator[Pano
         raise TargetError(f"camera topic {rig.camera.topic} is not in {rec.path}")
     for k, raw in enumerate(rec.messages([rig.camera.topic])):
         if k % max(int(every), 1) == 0:
-            yield decode_panorama(rec.decode(raw), raw.log_ns)
+            pano = decode_panorama(rec.decode(raw), raw.log_ns)
+            if pano.width != 2 * pano.height:
+                raise TargetError(
+                    f"{rec.path}: the camera's images are {pano.width}×{pano.height} px; an equirectangular "
+                    "panorama is twice as wide as high (2:1)"
+                )
+            yield pano
 
 
 @dataclass(frozen=True)
