@@ -157,6 +157,9 @@ def _images_in(folder: Path) -> Iterator[NDArray[np.uint8]]:
         img = cv2.imread(str(f), cv2.IMREAD_COLOR)
         if img is None:
             raise TargetError(f"{f}: cannot read the image")
+        h, w = img.shape[:2]
+        if w != 2 * h:
+            raise TargetError(f"{f} is {w}×{h} px; an equirectangular panorama is twice as wide as high")
         yield np.asarray(img, dtype=np.uint8)
 
 
@@ -167,6 +170,10 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     from studio.io import load_rig, open_recording
 
     src = Path(args.source)
+    if not src.exists():
+        raise TargetError(f"{src}: no such recording or folder of panoramas")
+    if src.is_file() and src.suffix.lower() in _IMAGE_SUFFIXES:
+        raise TargetError(f"{src} is one image: give the folder that holds the panoramas of the checkerboard")
     out_file(getattr(args, "json", None), "--json", inputs=[src, getattr(args, "rig", None)])
     pattern = tuple(getattr(args, "pattern", (8, 5)))
     kw = {"pattern": (int(pattern[0]), int(pattern[1])), "square": float(getattr(args, "square", 0.07)),

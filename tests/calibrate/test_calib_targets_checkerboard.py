@@ -61,6 +61,25 @@ def test_no_board_is_a_user_error() -> None:
         calibrate_faces([blank])
 
 
+def test_intrinsics_names_what_is_wrong_with_its_source(tmp_path: Path) -> None:
+    """A missing path asked for --rig, and a square image said that no checkerboard was found."""
+
+    def run(source: Path) -> int:
+        ns = argparse.Namespace(source=str(source), rig=None, pattern=(8, 5), square=0.07, face_size=None)
+        return run_intrinsics(ns)
+
+    with pytest.raises(TargetError, match="no such recording or folder"):
+        run(tmp_path / "nothere")
+    (tmp_path / "pans").mkdir()
+    ok, jpg = cv2.imencode(".jpg", np.full((100, 100, 3), 128, np.uint8))
+    assert ok
+    (tmp_path / "pans" / "a.jpg").write_bytes(jpg.tobytes())
+    with pytest.raises(TargetError, match=r"a\.jpg is one image: give the folder"):
+        run(tmp_path / "pans" / "a.jpg")
+    with pytest.raises(TargetError, match=r"100×100 px; an equirectangular panorama is twice as wide"):
+        run(tmp_path / "pans")
+
+
 @pytest.mark.slow
 def test_intrinsics_command_on_a_simulated_recording(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
