@@ -449,6 +449,8 @@ def decode_panorama(msg: Any, stamp_ns: int | None = None) -> Panorama:
         frame = _frame_of(msg)
         if hasattr(msg, "format") and not hasattr(msg, "width"):
             data = _bytes_of(msg.data)
+            if not data:
+                raise ValueError(f"compressed image ({msg.format or 'unknown format'}) with no data")
             img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
             if img is None or img.ndim != 3:
                 raise ValueError(

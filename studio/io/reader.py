@@ -76,6 +76,7 @@ class _RosbagsBackend:
             self.start_ns = int(self.reader.start_time) if count else 0
             # rosbags' end_time is one past the last message
             self.end_ns = int(self.reader.end_time) - 1 if count else 0
+            self.notes = _far_apart(self.reader.readers)
         except BaseException:
             self.close()
             raise
@@ -108,6 +109,36 @@ class _RosbagsBackend:
     def close(self) -> None:
         if self.reader.stack is not None:
             self.reader.close()
+
+
+FAR_APART_S = 600.0
+"""Bags of one folder whose messages lie more than this apart (seconds) are probably not one recording."""
+
+
+def _far_apart(readers: Iterable[Any]) -> list[str]:
+    """A note where the bags read as one recording (a folder of them) follow each other after a long
+    pause: a split recording's pieces, or bags of sensors recorded side by side, do not; unrelated bags put
+    in one folder do, and their merged timeline is mostly empty."""
+    spans = sorted(
+        (int(r.start_time), int(r.end_time), Path(r.path).name) for r in readers if int(r.message_count) > 0
+    )
+    notes, end, last = [], None, ""
+    for start, stop, name in spans:
+        if end is not None and (start - end) / 1e9 > FAR_APART_S:
+            notes.append(
+                f"{name} begins {_duration((start - end) / 1e9)} after {last} ends: the folder's bags are "
+                "read as one recording; are they one?"
+            )
+        if end is None or stop > end:
+            end, last = stop, name
+    return notes
+
+
+def _duration(seconds: float) -> str:
+    for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit}"
+    return f"{seconds:.0f} s"
 
 
 def _ros1_backend(files: list[Path]) -> _Backend:

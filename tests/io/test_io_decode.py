@@ -97,6 +97,10 @@ def test_big_endian_mono16() -> None:
             NS(header=NS(stamp=_stamp(0), frame_id=""), format="jpeg", data=np.zeros(10, np.uint8)),
             "does not decode",
         ),
+        (
+            NS(header=NS(stamp=_stamp(0), frame_id=""), format="jpeg", data=np.zeros(0, np.uint8)),
+            r"compressed image \(jpeg\) with no data",  # was OpenCV's assertion text
+        ),
         (NS(header=NS(stamp=_stamp(0), frame_id="")), "cannot decode image"),
     ],
 )

@@ -33,6 +33,24 @@ def test_a_folder_of_bags_reads_as_the_bag_they_were_split_from(tmp_path: Path, 
     assert sorted(got) == sorted(records)
 
 
+def test_unrelated_bags_in_one_folder_are_noted(tmp_path: Path) -> None:
+    """Two bags recorded 104 days apart were merged into one recording without a word."""
+    import shutil
+
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    for name in ("demo_stationary_simple_environment.bag", "negative_2.bag"):
+        shutil.copy(bag(name), folder / name)
+    with open_recording(folder) as rec:
+        assert rec.notes == [
+            "demo_stationary_simple_environment.bag begins 104.0 days after negative_2.bag ends: the "
+            "folder's bags are read as one recording; are they one?"
+        ]
+    split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec", parts=3)
+    with open_recording(tmp_path / "rec") as rec:
+        assert rec.notes == []  # the pieces of a split recording follow each other
+
+
 def test_the_bags_of_a_folder_go_in_name_order_with_numbers_as_numbers(tmp_path: Path) -> None:
     parts = split_bag(bag("demo_stationary_simple_environment.bag"), tmp_path / "rec", parts=3)
     for p, name in zip(parts, ["run_2.bag", "run_10.bag", "run_1.bag"], strict=True):
