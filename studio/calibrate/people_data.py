@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from studio.calibrate.errors import CalibrationError
 from studio.detect.laser.base import KIND_LEG
+from studio.geometry.equirect import not_equirect
 
 __all__ = [
     "ImageObservation",
@@ -192,11 +193,8 @@ def _images(
             pano = decode_panorama(msg, raw.log_ns)
         except RecordingError:
             continue
-        if pano.width != 2 * pano.height:
-            raise PeopleCalibrationError(
-                f"{rec.path}: the camera's images are {pano.width}×{pano.height} px; an equirectangular "
-                "panorama is twice as wide as high (2:1)"
-            )
+        if (wrong := not_equirect(pano.width, pano.height)) is not None:
+            raise PeopleCalibrationError(f"{rec.path}: the camera's images are {wrong}")
         last, size = stamp, (pano.width, pano.height)
         out.append(image_observation(stamp, detector.detect(pano.image)))
         if progress is not None:

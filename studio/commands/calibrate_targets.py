@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from studio.atomic import atomic_write_text, out_file
+from studio.geometry.equirect import not_equirect
 
 __all__ = ["run_intrinsics", "run_targets", "write_correspondences"]
 
@@ -157,9 +158,8 @@ def _images_in(folder: Path) -> Iterator[NDArray[np.uint8]]:
         img = cv2.imread(str(f), cv2.IMREAD_COLOR)
         if img is None:
             raise TargetError(f"{f}: cannot read the image")
-        h, w = img.shape[:2]
-        if w != 2 * h:
-            raise TargetError(f"{f} is {w}×{h} px; an equirectangular panorama is twice as wide as high")
+        if (wrong := not_equirect(img.shape[1], img.shape[0])) is not None:
+            raise TargetError(f"{f} is {wrong}")
         yield np.asarray(img, dtype=np.uint8)
 
 

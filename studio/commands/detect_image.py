@@ -20,6 +20,7 @@ import numpy as np
 from studio.atomic import out_file, write_out
 from studio.detect.image import ImageDetections, get_image_detector
 from studio.errors import StudioError
+from studio.geometry.equirect import not_equirect
 from studio.io.decode import looks_dual_fisheye
 
 __all__ = ["detection_record", "read_panorama", "run"]
@@ -35,9 +36,8 @@ def read_panorama(path: str | Path) -> np.ndarray:
     img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if img is None:
         raise StudioError(f"cannot decode image: {p}")
-    h, w = img.shape[:2]
-    if w != 2 * h:
-        raise StudioError(f"{p} is {w}×{h} px; an equirectangular panorama is twice as wide as high (2:1)")
+    if (wrong := not_equirect(img.shape[1], img.shape[0])) is not None:
+        raise StudioError(f"{p} is {wrong}")
     if looks_dual_fisheye(img):
         raise StudioError(f"{p} is two fisheye circles side by side, not an equirectangular panorama")
     return np.ascontiguousarray(img)

@@ -36,9 +36,17 @@ from studio.geometry.base import angles_to_pixel, angles_to_rays, pixel_to_angle
 from studio.geometry.errors import GeometryError
 from studio.geometry.se import Pose3
 
-__all__ = ["EquirectCamera"]
+__all__ = ["EquirectCamera", "not_equirect"]
 
 FloatArray = NDArray[np.float64]
+
+
+def not_equirect(width: int, height: int) -> str | None:
+    """What is wrong with an image of this size as an equirectangular panorama (it spans 360° × 180°, so it
+    is twice as wide as high), or None when nothing is: the words every reader of panoramas reports."""
+    if width == 2 * height:
+        return None
+    return f"{width}×{height} px; an equirectangular panorama is twice as wide as high (2:1)"
 
 
 def _as_uv(uv: ArrayLike) -> FloatArray:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from studio.geometry.equirect import not_equirect
 from studio.geometry.se import Pose2, Pose3
 from studio.io.base import CloudSlice, Frame, LaserScan, ScanInBase
 from studio.io.decode import (
@@ -564,11 +565,11 @@ def iter_frames(
             except RecordingError as exc:
                 rep.drop(DROP_BAD_IMAGE, exc)
                 return None
-            h, w = pano.image.shape[:2]
-            if w != 2 * h:
+            w, h = pano.width, pano.height
+            if (wrong := not_equirect(w, h)) is not None:
                 raise RecordingError(
-                    f"camera topic {cam_topic}: the image at {pano.stamp_ns * 1e-9:.3f} s is {w}×{h} px; "
-                    "an equirectangular panorama is twice as wide as high (2:1): is this the 360° camera?"
+                    f"camera topic {cam_topic}: the image at {pano.stamp_ns * 1e-9:.3f} s is {wrong}: is "
+                    "this the 360° camera?"
                 )
             if pano_size is None:
                 if looks_dual_fisheye(pano.image):

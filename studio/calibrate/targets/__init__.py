@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from studio.errors import StudioError
+from studio.geometry.equirect import not_equirect
 from studio.geometry.se import Pose3
 from studio.io.base import Panorama
 from studio.io.reader import Recording
@@ -117,11 +118,8 @@ def iter_panoramas(rec: Recording, rig: Rig, *, every: int = 1) -> Iterator[Pano
     for k, raw in enumerate(rec.messages([rig.camera.topic])):
         if k % max(int(every), 1) == 0:
             pano = decode_panorama(rec.decode(raw), raw.log_ns)
-            if pano.width != 2 * pano.height:
-                raise TargetError(
-                    f"{rec.path}: the camera's images are {pano.width}×{pano.height} px; an equirectangular "
-                    "panorama is twice as wide as high (2:1)"
-                )
+            if (wrong := not_equirect(pano.width, pano.height)) is not None:
+                raise TargetError(f"{rec.path}: the camera's images are {wrong}")
             yield pano
 
 
