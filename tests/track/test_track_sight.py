@@ -189,3 +189,19 @@ def test_someone_who_walked_on_hidden_is_found_again_where_the_walk_leads():
     a_short = tracklet(0, 9.7, 10.0, (-0.3, 0.0), (0.0, 0.0), (1.0, 0.0))
     assert stitch_links([a_short, b], sight=walled) == []
     assert stitch_links([a, b], sight=walled, config=StitchConfig(hidden_max_error=0.0)) == []
+
+
+def test_someone_who_walked_on_hidden_and_stopped_is_found_again_on_the_way():
+    # A walks along +x at 1 m/s and is lost at (0, 0) at t = 10 s; B stands at (2.5, 0) from 15 s: the
+    # person walked on behind the wall and stopped halfway along where A's walk leads. Too far for "found
+    # again where lost" (1 m + 0.25 m/s x 5 s); A's walk at its velocity would end 2.5 m further on
+    a = tracklet(0, 9.0, 10.0, (-1.0, 0.0), (0.0, 0.0), (1.0, 0.0))
+    stamps = [round(0.1 * k * S) for k in range(201)]
+    walled = Sight(stamps, [scan_view([fan(origin=(2.5, -3.0), wall_m=1.0, fov=(0.0, 180.0))])] * len(stamps))
+    stopped = tracklet(1, 15.0, 16.0, (2.5, 0.0), (2.5, 0.0), (0.0, 0.0))
+    assert stitch_links([a, stopped], sight=walled) == [(0, 1)]
+    # 2 m beside the way, or back behind where A was lost, is not on it
+    beside = tracklet(1, 15.0, 16.0, (2.5, 2.0), (2.5, 2.0), (0.0, 0.0))
+    behind = tracklet(1, 15.0, 16.0, (-2.5, 0.0), (-2.5, 0.0), (0.0, 0.0))
+    assert stitch_links([a, beside], sight=walled) == []
+    assert stitch_links([a, behind], sight=walled) == []
