@@ -188,7 +188,7 @@ class StitchConfig:
             ``still_m`` of both ends: the person stood on one spot throughout, and nobody else fits on it
             beside them; their colours changed because something stood in front of them (a desk top over
             the trousers while the robot drove past), m (0: never). Session 76 (``docs/results.md``):
-            simulated ``moving`` seed 66, a person standing 8.4 m away behind a desk for 8 s, 2 → 0
+            simulated ``moving`` seed 66, a person standing 8.4 m away behind a desk for 9 s, 2 → 0
             switches; seeds 11–20, 37, 39–70 otherwise unchanged.
         beside_m: a chain of pieces whose tracklet lies within this of another tracklet (not an end of the
             gap) at half or more of its observations goes into no gap: it is a second track on that person
@@ -583,13 +583,13 @@ def _fill_gaps(
     neighbour, 12 ΔE off as a whole, linked on to a 13-view piece 5 ΔE off; A and C were joined across both
     and the pieces, 9 s of the person, came out as a track of their own: two switches). A chain whose
     colours agree with neither end counts too when the person stood on one spot throughout (``still_m``).
-    A free chain goes
-    between A and C when it lies inside the gap in time and each joint is at most ``fill_distance + fill_speed
-    · gap`` long, or one joint is a motion link at most ``fill_distance`` long and the other a walk
-    (``fill_distance + max_speed · gap``); several go in one after another in time. Where it fits several
-    gaps, it goes where more of its joints are motion links (a short gap a walker bridges, within the gates
-    of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap for long, but only the one
-    who left just before the piece starts continues into it), then where the joints are shortest.
+    A free chain goes between A and C when it lies inside the gap in time and each joint is at most
+    ``fill_distance + fill_speed · gap`` long, or one joint is a motion link at most ``fill_distance`` long
+    and the other a walk (``fill_distance + max_speed · gap``); several go in one after another in time.
+    Where it fits several gaps, it goes where more of its joints are motion links (a short gap a walker
+    bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap
+    for long, but only the one who left just before the piece starts continues into it), then where the
+    joints are shortest.
 
     A chain may also overlap one end of the gap by up to ``max_overlap_s`` (the online pass had two tracks on
     the person for a moment, or the track after the gap began on someone else and took the person over
