@@ -139,3 +139,27 @@ def test_without_odometry_scan_matching_s_motion_places_and_deskews_the_scans() 
     start = Pose2(1.0, 2.0, 0.3)
     got = _twist((0, start), (100_000_000, start.compose(step)))
     np.testing.assert_allclose(got, twist, atol=1e-9)
+
+
+def test_odometry_messages_that_cannot_be_decoded_are_counted_with_the_first_reason(tmp_path: Path) -> None:
+    path = tmp_path / "bad-odom.mcap"
+    with RecordingWriter(path) as w:
+        for k in range(51):
+            x = float("nan") if k in (10, 30) else 0.0  # two messages with no position
+            w.write_odometry("/odom", Odometry(T0 + k * 20_000_000, "odom", "base_link", Pose2(x, 0.0, 0.0)))
+        for k in range(1, 8):
+            w.write_scan("/scan", _wall_scan(T0 + k * 100_000_000, 0.0))
+    rig = parse_rig(
+        {
+            "base_frame": "base_link",
+            "odometry": {"topic": "/odom"},
+            "lasers": [{"topic": "/scan", "pose": {}}],
+        }
+    )
+    report = SyncReport()
+    with open_recording(path) as rec:
+        frames = list(iter_frames(rec, rig, report=report))
+    assert len(frames) == 7  # the other 49 messages carry the motion
+    (warning,) = [w for w in report.warnings if "odometry" in w]
+    assert warning.startswith("2 odometry messages on /odom could not be decoded (the first: ")
+    assert "non-finite position" in warning
