@@ -182,14 +182,6 @@ class StitchConfig:
             out. A piece described by more observations goes into a gap, alone or in a chain, when its
             colours are within ``reid_max_appearance`` of both ends' and the chain holds no
             re-identification of its own (session 53). 0: only undescribed pieces.
-        still_m: a chain of pieces whose colours differ from the gap's ends goes into the gap all the same
-            when it takes over from the one end and hands over to the other within ``max_gap_s`` each, the
-            ends lie within ``still_m`` of each other, and nine in ten of its observations within
-            ``still_m`` of both ends: the person stood on one spot throughout, and nobody else fits on it
-            beside them; their colours changed because something stood in front of them (a desk top over
-            the trousers while the robot drove past), m (0: never). Session 76 (``docs/results.md``):
-            simulated ``moving`` seed 66, a person standing 8.4 m away behind a desk for 9 s, 2 → 0
-            switches; seeds 11–20, 37, 39–70 otherwise unchanged.
         beside_m: a chain of pieces whose tracklet lies within this of another tracklet (not an end of the
             gap) at half or more of its observations goes into no gap: it is a second track on that person
             (a duplicate born on one leg), not a piece of whoever was lost, m (0: no such check). Two people
@@ -249,7 +241,6 @@ class StitchConfig:
     fill_distance: float = 1.0
     fill_speed: float = 0.5
     fill_max_views: int = 5
-    still_m: float = 0.5
     beside_m: float = 0.3
     lost_max_gap_s: float = 20.0
     lost_min_duration_s: float = 2.0
@@ -278,13 +269,12 @@ class StitchConfig:
                 self.hidden_min_duration_s,
                 self.hidden_max_error,
                 self.beside_m,
-                self.still_m,
             )
             < 0
         ):
             raise ValueError(
-                "reid_max_gap_s, reid_cost_per_min, few_views, seen_empty_s, beside_m, still_m, the hidden_* "
-                "options, and the lost_* gap, distance and speed must not be negative"
+                "reid_max_gap_s, reid_cost_per_min, few_views, seen_empty_s, beside_m, the hidden_* options, "
+                "and the lost_* gap, distance and speed must not be negative"
             )
 
 
@@ -582,7 +572,12 @@ def _fill_gaps(
     ``moving`` seed 28, a walker lost for 4.6 s and found again as a piece whose first crops showed a
     neighbour, 12 ΔE off as a whole, linked on to a 13-view piece 5 ΔE off; A and C were joined across both
     and the pieces, 9 s of the person, came out as a track of their own: two switches). A chain whose
-    colours agree with neither end counts too when the person stood on one spot throughout (``still_m``).
+    colours agree with neither end counts too when it continues the gap's start and the gap's end continues
+    it by motion links, colours set aside (within ``max_gap_s`` and the gates of :func:`_plain_cost`): the
+    person seen there with spoiled colours — a desk top over their trousers while the robot drove past
+    (session 76, ``docs/results.md``: simulated ``moving`` seeds 66 and 17, 9 s and 18 s pieces 20–29 ΔE
+    off, two switches each). Someone else would have to step in where the person vanished and vanish where
+    they come back, both within seconds.
     A free chain goes between A and C when it lies inside the gap in time and each joint is at most
     ``fill_distance + fill_speed · gap`` long, or one joint is a motion link at most ``fill_distance`` long
     and the other a walk (``fill_distance + max_speed · gap``); several go in one after another in time.
@@ -635,25 +630,18 @@ def _fill_gaps(
                 return False
         return True
 
-    def still(chain: list[int], a: Tracklet, c: Tracklet) -> bool:
-        """Whether the chain takes over from ``a`` and hands over to ``c`` within ``max_gap_s`` each, ``a``'s
-        end and ``c``'s start lie within ``still_m`` of each other, and nine in ten of the chain's
-        observations within ``still_m`` of both: someone who stood on one spot throughout (nobody else
-        fits there beside them)."""
+    blind = replace(cfg, max_appearance=np.inf, few_views=0)
+
+    def walked_through(chain: list[int], a: Tracklet, c: Tracklet) -> bool:
+        """Whether the chain continues ``a`` and ``c`` continues the chain by motion links, colours set
+        aside: the colours against it are the chain's own (A and C agree), spoiled where it was seen."""
         head, tail = by_id[chain[0]], by_id[chain[-1]]
-        if (
-            cfg.still_m <= 0
-            or (head.start_ns - a.end_ns) * 1e-9 > cfg.max_gap_s
-            or (c.start_ns - tail.end_ns) * 1e-9 > cfg.max_gap_s
-            or np.hypot(*(c.x_start[:2] - a.x_end[:2])) > cfg.still_m
-        ):
-            return False
-        xy = [x[:, :2] for m in chain if (x := by_id[m].x_hit) is not None]
-        if not xy:
-            return False
-        at = np.vstack(xy)
-        near = [np.hypot(*(at - end).T) <= cfg.still_m for end in (a.x_end[:2], c.x_start[:2])]
-        return bool(np.mean(near[0] & near[1]) >= 0.9)
+        for x, y in ((a, head), (tail, c)):
+            if not 0.0 < (y.start_ns - x.end_ns) * 1e-9 <= cfg.max_gap_s:
+                return False
+            if _plain_cost(x, y, blind, sight) is None:
+                return False
+        return True
 
     def joint(a: Tracklet, b: Tracklet) -> tuple[int, float, bool] | None:
         """(-1 for a motion link, 1 for an overlap, else 0; length; whether it is short) of the joint a → b,
@@ -697,7 +685,7 @@ def _fill_gaps(
             end = by_id[c]
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
-            if not (colours_fit(members, by_id[a], end) or still(chain, cur, end)):
+            if not (colours_fit(members, by_id[a], end) or walked_through(chain, cur, end)):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is None or j2 is None or (j1[0] > 0 and j2[0] > 0):
