@@ -17,7 +17,8 @@ call then runs the static-world filter, fusion and offline tracking exactly as `
 prints the metrics at 0.2 m; ``--switches`` also lists every identity
 switch (frame, ground-truth id, range from the robot, distance to the nearest other person, the track ids
 before and after, and its kind: an *encounter*'s, with someone else within 0.8 m; *after a gap*, where the
-person had gone unmatched for more than 1 s; or *other*), marks the switches that were *undone* (the
+person had gone unmatched for more than 1 s; or *other*; and, where the track after it last had someone
+else, who and when: a wrong link rather than a new track), marks the switches that were *undone* (the
 person went from track A to B and back to A within 3 s: two tracks exchanged people for a moment)
 and the switches *to check* (within 2 s of a review point of ``review.jsonl`` on the track before or after,
 :mod:`studio.labels.review`: what a person checking the doubts the run lists would find) and *first* (such
@@ -340,8 +341,9 @@ UNDONE_S = 3.0  # a switch from track A to B undone (B back to A) within this ma
 CHECK_S = 2.0  # a switch this near a review point of the track before or after it is one to check
 
 
-def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int, int, int, int, int]:
+def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], int, int, int, int, int, int]:
     """Print every identity switch with its context. Returns how many of each :func:`switch_kind`, how
+    many went onto a track that last had someone else (the rest onto a new track or one of their own), how
     many of them come in *undone* pairs (the person went from track A to track B and back to A within
     :data:`UNDONE_S` seconds: two tracks exchanged people for a moment; each such pair is two switches),
     how many are *to check* (within :data:`CHECK_S` of a review point on track A or B, as ``studio
@@ -359,7 +361,9 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     # each ground-truth frame's prediction as the evaluator aligned it (interpolated where it had to be)
     aligned = {g.frame: pf for g, pf in align_frames(LabelSet.from_frames(labels), gt).pairs}
     last: dict[int, tuple[int, int]] = {}
+    held: dict[int, tuple[int, int]] = {}  # track -> (frame, person) of its last match
     kinds: Counter[str] = Counter()
+    taken = 0
     events: list[tuple[float, int, int, int | None, str]] = []  # time (s), person, from track, to track, text
     clear = ClearMOT(radius=ev.radius)  # CLEAR MOT's own correspondences (they decide the switches)
     for fe in ev.frames:
@@ -382,16 +386,20 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
             first = any(p.doubt >= FIRST_DOUBT for p in near_points)
             kinds["to check"] += bool(near_points)
             kinds["first"] += first
+            prior = held.get(match.get(g, -1))
+            taken += prior is not None and prior[1] != g
             text = (
                 f"  frame {fe.frame:5d} person {g:3d} at {float(np.hypot(*people[g])):4.1f} m, "
                 f"nearest other {near:4.2f} m: track {was} (its last match, frame {before}) "
                 f"-> {match.get(g)} [{kind}]"
+                + ("" if prior is None or prior[1] == g else f" (it had person {prior[1]}, frame {prior[0]})")
                 + (" to check" if near_points else "")
                 + (" first" if first else "")
             )
             events.append((seconds[fe.frame], g, was, match.get(g), text))
         for g, p in match.items():
             last[g] = (fe.frame, p)
+            held[p] = (fe.frame, g)
     undone: set[int] = set()
     for i, (f, g, a, b, _) in enumerate(events):
         for j in range(i + 1, len(events)):
@@ -404,7 +412,8 @@ def switches(labels: list[Any], ev: Any, gt: LabelSet) -> tuple[Counter[str], in
     for i, (*_, text) in enumerate(events):
         print(text + (" undone" if i in undone else ""))
     n_first = sum(p.doubt >= FIRST_DOUBT for p in points)
-    return kinds, len(undone), kinds.pop("to check", 0), kinds.pop("first", 0), len(points), n_first
+    check, first = kinds.pop("to check", 0), kinds.pop("first", 0)
+    return kinds, taken, len(undone), check, first, len(points), n_first
 
 
 HANDOVER_S = 3.0  # a track matched to another person within this many seconds of its last match
@@ -518,7 +527,7 @@ def main() -> None:
         options = replace(options, tracking=replace(options.tracking, **dict.fromkeys(args.without)))
     total: Counter[str] = Counter()
     total_handovers: Counter[str] = Counter()
-    total_undone = total_check = total_first = total_points = total_points_first = 0
+    total_undone = total_taken = total_check = total_first = total_points = total_points_first = 0
     runs: list[Run] = []
     for seed in args.seeds:
         rec = recording(
@@ -565,15 +574,17 @@ def main() -> None:
             if args.likelihood:
                 compare_likelihood(seen, oracle_tracker(fused, gt))
             if args.switches:
-                kinds, undone, check, first, n_points, n_first = switches(labels, ev, gt)
+                kinds, taken, undone, check, first, n_points, n_first = switches(labels, ev, gt)
                 total += kinds
+                total_taken += taken
                 total_undone += undone
                 total_check += check
                 total_first += first
                 total_points += n_points
                 total_points_first += n_first
                 print(
-                    "  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {undone} undone; "
+                    "  " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())) + f"; {taken} onto "
+                    f"someone else's track; {undone} undone; "
                     f"{check} to check ({first} first), review points {n_points} "
                     f"({n_points / minutes:.1f}/min, {n_first} to check first)"
                 )
@@ -591,7 +602,8 @@ def main() -> None:
         print(
             "all: "
             + ", ".join(f"{k} {n}" for k, n in sorted(total.items()))
-            + f"; {total_undone} of them undone (A to B and back within {UNDONE_S:g} s)"
+            + f"; {total_taken} of them onto a track that last had someone else; {total_undone} undone "
+            f"(A to B and back within {UNDONE_S:g} s)"
         )
         minutes = sum(r.minutes for r in runs)
         print(

@@ -70,18 +70,21 @@ def test_switches_tells_an_exchange_undone_from_one_for_good(capsys: pytest.Capt
         )
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, undone, check, first, n_points, n_first = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, taken, undone, check, first, n_points, n_first = load_bench("replay_tracking").switches(
+        pred, ev, truth
+    )
     assert kinds == {"encounter": 4, "other": 2}
+    assert taken == 6  # each went onto the other's track
     assert undone == 4
     assert (check, first, n_points, n_first) == (0, 0, 0, 0)  # 0.5 m apart, begun with the run: no point
     out = capsys.readouterr().out
     assert (
         "frame    15 person   3 at  6.5 m, nearest other 0.50 m: "
-        "track 8 (its last match, frame 14) -> 9 [encounter] undone" in out
+        "track 8 (its last match, frame 14) -> 9 [encounter] (it had person 4, frame 14) undone" in out
     )
     assert (
         "frame    12 person   5 at  1.2 m, nearest other 3.00 m: "
-        "track 10 (its last match, frame 11) -> 11 [other]\n" in out
+        "track 10 (its last match, frame 11) -> 11 [other] (it had person 6, frame 11)\n" in out
     )
 
 
@@ -101,8 +104,9 @@ def test_switches_names_the_track_clear_mot_kept_not_the_nearest(capsys: pytest.
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
     assert ev.frames[4].matches[0][1] == 2  # the detection matching
-    kinds, *_ = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, taken, *_ = load_bench("replay_tracking").switches(pred, ev, truth)
     assert sum(kinds.values()) == 1
+    assert taken == 0  # track 2 had nobody before
     out = capsys.readouterr().out
     assert (
         "frame     6 person   1 at  2.0 m, nearest other  inf m: track 1 (its last match, frame 5) -> 2"
@@ -126,7 +130,7 @@ def test_a_switch_after_a_gap_is_counted_in_seconds_not_frames(
         pred.append(_frame(i, p, period_ns))
     truth = LabelSet.from_frames(gt)
     ev = evaluate(LabelSet.from_frames(pred), truth)
-    kinds, _, to_check, first, n_points, n_first = load_bench("replay_tracking").switches(pred, ev, truth)
+    kinds, _, _, to_check, first, n_points, n_first = load_bench("replay_tracking").switches(pred, ev, truth)
     assert kinds == {kind: 1}
     assert to_check == n_points == check
     # track 2 begins where track 1 was last seen: doubt 0.4, a point to check first
