@@ -45,7 +45,8 @@ only, after the described ones are linked; a chain of them that nothing continue
 re-identification when it lies in that gap near both ends (someone far away, standing still) or goes on
 by motion from where one end is and lies a walk from the other (someone who walked on), and so does
 a chain with described pieces whose colours agree with both ends (a piece described by only a few crops,
-``fill_max_views``, as a motion link asks; one described by more, as a re-identification asks).
+``fill_max_views``, as a motion link asks; one described by more, as a re-identification asks). A piece
+seen in two crops that both say someone else (``few_views``) goes in only where both ends are near it.
 """
 
 from __future__ import annotations
@@ -145,7 +146,8 @@ class StitchConfig:
             Session 58 (``docs/results.md``): held-out ``moving`` seed 37, person 0 described twice, 48 ΔE
             from the track of person 5 whom their tracklet was linked to by motion; seeds 21–40 21 → 19
             identity switches, seeds 1–20 and 41–50 18 → 19; 1 (one crop, perhaps of a neighbour) was no
-            gain.
+            gain. Such a piece also goes into no re-identification's gap away from both its ends
+            (:func:`stitch_links`, session 77).
         few_max_appearance: the colour difference (ΔE) over which those two crops refuse the link. Until
             session 60 it was ``max_appearance`` (25); held-out seed 22 linked person 1's track by motion to
             a piece of person 5 that walked on where person 1 left view, seen twice, 24 ΔE from person 1's
@@ -581,6 +583,13 @@ def _fill_gaps(
     A free chain goes between A and C when it lies inside the gap in time and each joint is at most
     ``fill_distance + fill_speed · gap`` long, or one joint is a motion link at most ``fill_distance`` long
     and the other a walk (``fill_distance + max_speed · gap``); several go in one after another in time.
+    A piece of it seen in ``few_views`` to ``min_views - 1`` crops whose colours differ from an end's by more
+    than ``few_max_appearance`` keeps the chain out (those crops say someone else, as they refuse a motion
+    link) unless both joints are at most ``fill_distance`` long, or the chain walked through as above: on the
+    spot where the person was lost and found again, it is the person whatever two crops say (session 77,
+    ``docs/results.md``: simulated ``moving`` seed 11, a second track on a neighbour 4 m from a 53 s gap's
+    ends, seen twice 46 ΔE off, went into it: two switches; seed 50, the person standing where they were
+    lost for 4 s, seen twice 39 ΔE off, belongs in theirs).
     Where it fits several gaps, it goes where more of its joints are motion links (a short gap a walker
     bridges, within the gates of :func:`_plain_cost`: two people waiting at one spot leave gaps that overlap
     for long, but only the one who left just before the piece starts continues into it), then where the
@@ -629,6 +638,20 @@ def _fill_gaps(
             if any(appearance_distance(m.app, h.app) > limit for h in (a, c)):  # type: ignore[arg-type]
                 return False
         return True
+
+    def few_against(chain: list[int], a: Tracklet, c: Tracklet) -> bool:
+        """Whether a piece of the chain seen in ``few_views`` to ``min_views - 1`` crops differs from an
+        end's colours by more than ``few_max_appearance``: those crops say someone else, as for a motion
+        link (:func:`_few_against`)."""
+        if cfg.few_views <= 0:
+            return False
+        few = [m for m in map(by_id.get, chain) if m and m.app is not None and cfg.few_views <= m.n_app]
+        return any(
+            appearance_distance(m.app, h.app) > cfg.few_max_appearance  # type: ignore[arg-type]
+            for m in few
+            if m.n_app < cfg.min_views
+            for h in (a, c)
+        )
 
     blind = replace(cfg, max_appearance=np.inf, few_views=0)
 
@@ -685,11 +708,15 @@ def _fill_gaps(
             end = by_id[c]
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
-            if not (colours_fit(members, by_id[a], end) or walked_through(chain, cur, end)):
+            fits = colours_fit(members, by_id[a], end)
+            walked = walked_through(chain, cur, end)
+            if not (fits or walked):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is None or j2 is None or (j1[0] > 0 and j2[0] > 0):
                 continue  # not walkable, or overlapping both ends (someone else alongside the person)
+            if not walked and max(j1[1], j2[1]) > cfg.fill_distance and few_against(chain, by_id[a], end):
+                continue  # seen elsewhere in someone else's colours
             # both joints short; or one a motion link within fill_distance and the other walkable (a walker's
             # piece that goes on from where one end is, then walks on to the other)
             close = any(j[0] < 0 and j[1] <= cfg.fill_distance for j in (j1, j2))

@@ -242,6 +242,29 @@ def test_undescribed_pieces_go_into_the_gap_of_a_re_identification_nearest_them(
     assert stitch_links([a, away, c]) == [(0, 3)]
 
 
+def test_a_piece_seen_twice_in_other_colours_away_from_the_ends_goes_into_no_gap():
+    # blue is lost at (8, 0) and re-identified there 25 s later; a piece in between 2.5 m away was seen by
+    # the camera twice, both times in red (moving seed 11: a second track on a neighbour 4 m from the gap's
+    # ends, 46 ΔE from its colours, went into it and its 1 s came out as two switches): someone else, it
+    # stays out
+    still = (0.0, 0.0)
+    a = tl(0, 0.0, 10.0, (8.0, 0.0), (8.0, 0.0), v=still, app=BLUE)
+    c = tl(2, 35.0, 40.0, (8.0, 0.1), (8.0, 0.1), v=still, app=BLUE)
+    piece = tl(1, 14.0, 16.0, (8.0, 2.5), (8.0, 2.5), v=still, app=RED, views=2)
+    assert stitch_links([a, piece, c]) == [(0, 2)]
+    # on the spot where blue was lost and found again it is blue, whatever two crops say (moving seed 50:
+    # 4 s of the person standing there, seen twice 39 ΔE off); two crops in blue's colours, one crop
+    # (perhaps of a neighbour) or the rule off: it goes in
+    on_the_spot = tl(1, 14.0, 16.0, (8.1, 0.0), (8.1, 0.1), v=still, app=RED, views=2)
+    for fits, config in (
+        (on_the_spot, StitchConfig()),
+        (replace(piece, app=BLUE, app_start=BLUE, app_end=BLUE), StitchConfig()),
+        (replace(piece, n_app=1), StitchConfig()),
+        (piece, StitchConfig(few_views=0)),
+    ):
+        assert stitch_links([a, fits, c], config=config) == [(0, 1), (1, 2)]
+
+
 def test_a_described_piece_that_matched_no_one_goes_into_the_gap_of_a_re_identification():
     # blue walks away and is re-identified 25 s later; in between the camera saw them for a moment far
     # away (four noisy views, 15 ΔE from their colours: too far for a re-identification of its own, within
