@@ -19,9 +19,11 @@
    before the overlap to the continuation's first observation after it (``overlap_margin``): then the
    continuation's own first observations were someone else's, and they are given up instead.
    Where two stitched tracks come close, the detections they held there are distributed between them
-   again by their motion through and after the encounter (:mod:`studio.track.encounters`), and the
-   colour repair runs once more on the stitched tracks: a tracklet cut by a gap just before an encounter
-   had too few described observations on one side for it to judge, its stitched track has enough.
+   again by their motion through and after the encounter (:mod:`studio.track.encounters`); the tracks it
+   changed are stitched again (a piece that held the neighbour when stitching ran may now hold the person
+   whose track ended just before the encounter), and the colour repair runs once more on the stitched
+   tracks: a tracklet cut by a gap just before an encounter had too few described observations on one side
+   for it to judge, its stitched track has enough.
    Then a track's short excursions onto someone else's way (a few observations off its line that lie
    closer to another track) are taken from it, and so are its last (first) few observations where they
    went onto someone whose own track goes on from there (:mod:`studio.track.excursions`), and last, each
@@ -444,10 +446,14 @@ def track_offline(
             run, x, _ = _estimate(obs, h, cfg, cache)
             return run.x, run.P, x
 
+        before = merged
         merged, _ = reassign_encounters(
             obs, merged, estimate, accel_sigma=cfg.tracker.accel_sigma, config=cfg.encounters
         )
         trace("encounters", merged)
+        if cfg.stitch is not None:
+            merged = _stitch_changed(obs, merged, before, colour_cut_pairs, cfg, cache)
+            trace("stitch again", merged)
     if cfg.duplicates is not None and len(merged) > 1:
         merged, _ = merge_duplicates(obs, merged, cfg.duplicates)
         trace("duplicates again", merged)
@@ -461,6 +467,37 @@ def track_offline(
         merged, _ = fill_gaps(obs, merged, cfg.gap_fill)
         trace("gap_fill", merged)
     return _output(obs, merged, cfg, cache)
+
+
+def _stitch_changed(
+    obs: Sequence[Observations],
+    tracks: dict[int, _Hits],
+    before: dict[int, _Hits],
+    cut: list[tuple[int, int]],
+    cfg: OfflineConfig,
+    cache: _Cache,
+) -> dict[int, _Hits]:
+    """Stitch again where the encounter re-decision changed tracks: the links of :func:`stitch_links` over
+    the tracks as they are now that have an end in a changed track. Simulated ``moving`` seed 61 (session
+    77, ``docs/results.md``): the online pass swapped person 5 and a neighbour in an encounter, and a
+    colour cut ended person 5's track 0.4 s before it; the re-decision gave person 5's detections after the
+    encounter to the piece the cut had left on the neighbour, and that piece came out as a track of its
+    own."""
+    changed = {tid for tid, h in tracks.items() if h != before.get(tid)}
+    if not changed or cfg.stitch is None:
+        return tracks
+    summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracks.items()]
+    sight = Sight([o.stamp_ns for o in obs], [o.view for o in obs])
+    links = [
+        (a, b)
+        for a, b in stitch_links(summaries, config=cfg.stitch, cut=cut, sight=sight)
+        if a in changed or b in changed
+    ]
+    if not links:
+        return tracks
+    root = chain_links(list(tracks), links)
+    cuts = link_cuts(summaries, links, config=cfg.stitch, sight=sight)
+    return join_chains(obs, tracks, root, cuts, cfg)
 
 
 def join_chains(

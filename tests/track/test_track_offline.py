@@ -231,6 +231,7 @@ def test_each_stage_shows_its_tracks(sim, occluded):
     names = [name for name, _ in seen]
     assert names[0] == "online"
     assert names.index("colour_cuts") < names.index("stitch") < names.index("encounters")
+    assert names.index("encounters") < names.index("stitch again") < names.index("excursions")
     assert names[-1] == "gap_fill"
     person = _hits_by_person(det)[0]
 
@@ -453,3 +454,30 @@ def test_observations_closer_in_time_than_their_errors_last_count_as_one():
         np.testing.assert_allclose(wide[5].cov, widened * obs[5].cov)
     with pytest.raises(ValueError, match="correlation_s"):
         OfflineConfig(correlation_s=-0.1)
+
+
+def test_a_track_the_encounter_re_decision_changed_is_stitched_again():
+    """Simulated ``moving`` seed 61: person 5's track ended 0.4 s before an encounter whose re-decision gave
+    their detections after it to a piece that, when stitching ran, held the neighbour; stitching the
+    changed tracks again joins that piece to person 5's track. Tracks the re-decision left as they were are
+    not stitched again (stitching has judged them)."""
+    from studio.track.offline import _stitch_changed
+
+    nan = np.full(6, np.nan, np.float32)
+    obs = [
+        Observations.create(
+            1_000_000_000 + k * 100_000_000,
+            [(0.1 * k, 0.0), (0.1 * k, 3.0)],
+            sigma_m=0.05,
+            appearance=[_RED if k % 2 == 0 else nan, _BLUE if k % 2 == 0 else nan],
+        )
+        for k in range(100)
+    ]
+    a = [(k, 0) for k in range(50)]
+    b = [(k, 0) for k in range(54, 100)]
+    c = [(k, 1) for k in range(100)]
+    tracks = {1: a, 2: b, 3: c}
+    before = {1: a, 2: [(k, 1) for k in range(54, 100)], 3: [(k, 1) for k in range(54)]}
+    cfg = OfflineConfig()
+    assert _stitch_changed(obs, tracks, before, [], cfg, {}) == {1: a + b, 3: c}
+    assert _stitch_changed(obs, tracks, dict(tracks), [], cfg, {}) == tracks
