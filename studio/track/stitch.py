@@ -645,11 +645,11 @@ def _fill_gaps(
         link (:func:`_few_against`)."""
         if cfg.few_views <= 0:
             return False
-        few = [m for m in map(by_id.get, chain) if m and m.app is not None and cfg.few_views <= m.n_app]
+        few = [by_id[m] for m in chain if cfg.few_views <= by_id[m].n_app < cfg.min_views]
         return any(
             appearance_distance(m.app, h.app) > cfg.few_max_appearance  # type: ignore[arg-type]
             for m in few
-            if m.n_app < cfg.min_views
+            if m.app is not None
             for h in (a, c)
         )
 
@@ -709,13 +709,14 @@ def _fill_gaps(
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
             fits = colours_fit(members, by_id[a], end)
-            walked = walked_through(chain, cur, end)
+            walked = not fits and walked_through(chain, cur, end)  # needed only where colours do not fit
             if not (fits or walked):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is None or j2 is None or (j1[0] > 0 and j2[0] > 0):
                 continue  # not walkable, or overlapping both ends (someone else alongside the person)
-            if not walked and max(j1[1], j2[1]) > cfg.fill_distance and few_against(chain, by_id[a], end):
+            far = max(j1[1], j2[1]) > cfg.fill_distance
+            if far and few_against(chain, by_id[a], end) and not (walked or walked_through(chain, cur, end)):
                 continue  # seen elsewhere in someone else's colours
             # both joints short; or one a motion link within fill_distance and the other walkable (a walker's
             # piece that goes on from where one end is, then walks on to the other)
