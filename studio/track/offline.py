@@ -429,16 +429,11 @@ def track_offline(
         tracklets, _ = repair_swaps(obs, tracklets, cfg.swaps)
         trace("swaps", tracklets)
     cache: _Cache = {}
-    cuts: dict[int, int] = {}
+    sight = Sight([o.stamp_ns for o in obs], [o.view for o in obs])
     if cfg.stitch is not None and len(tracklets) > 1:
-        summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracklets.items()]
-        sight = Sight([o.stamp_ns for o in obs], [o.view for o in obs])
-        links = stitch_links(summaries, config=cfg.stitch, cut=colour_cut_pairs, sight=sight)
-        root = chain_links(list(tracklets), links)
-        cuts = link_cuts(summaries, links, config=cfg.stitch, sight=sight)
+        merged = _stitch(obs, tracklets, colour_cut_pairs, sight, cfg, cache)
     else:
-        root = {tid: tid for tid in tracklets}
-    merged = join_chains(obs, tracklets, root, cuts, cfg)
+        merged = join_chains(obs, tracklets, {tid: tid for tid in tracklets}, {}, cfg)
     trace("stitch", merged)
     if cfg.encounters is not None and len(merged) > 1:
 
@@ -452,7 +447,10 @@ def track_offline(
         )
         trace("encounters", merged)
         if cfg.stitch is not None:
-            merged = _stitch_changed(obs, merged, before, colour_cut_pairs, cfg, cache)
+            # the tracks the re-decision changed are stitched again (a piece that held the neighbour when
+            # stitching ran may now hold the person whose track ended just before the encounter)
+            changed = {tid for tid, h in merged.items() if h != before.get(tid)}
+            merged = _stitch(obs, merged, colour_cut_pairs, sight, cfg, cache, among=changed)
             trace("stitch again", merged)
     if cfg.duplicates is not None and len(merged) > 1:
         merged, _ = merge_duplicates(obs, merged, cfg.duplicates)
@@ -469,32 +467,30 @@ def track_offline(
     return _output(obs, merged, cfg, cache)
 
 
-def _stitch_changed(
+def _stitch(
     obs: Sequence[Observations],
     tracks: dict[int, _Hits],
-    before: dict[int, _Hits],
     cut: list[tuple[int, int]],
+    sight: Sight,
     cfg: OfflineConfig,
     cache: _Cache,
+    among: set[int] | None = None,
 ) -> dict[int, _Hits]:
-    """Stitch again where the encounter re-decision changed tracks: the links of :func:`stitch_links` over
-    the tracks as they are now that have an end in a changed track. Simulated ``moving`` seed 61 (session
-    77, ``docs/results.md``): the online pass swapped person 5 and a neighbour in an encounter, and a
-    colour cut ended person 5's track 0.4 s before it; the re-decision gave person 5's detections after the
-    encounter to the piece the cut had left on the neighbour, and that piece came out as a track of its
-    own."""
-    changed = {tid for tid, h in tracks.items() if h != before.get(tid)}
-    if not changed or cfg.stitch is None:
+    """The tracks joined by the links of :func:`stitch_links`; with ``among``, only by those with an end in
+    it, and the tracks as they were when there is none. Stitching again the tracks the encounter
+    re-decision changed: simulated ``moving`` seed 61 (session 77, ``docs/results.md``), where the online
+    pass swapped person 5 and a neighbour in an encounter and a colour cut ended person 5's track 0.4 s
+    before it; the re-decision gave person 5's detections after the encounter to the piece the cut had left
+    on the neighbour, and that piece came out as a track of its own."""
+    assert cfg.stitch is not None
+    if among is not None and not among:
         return tracks
     summaries = [_tracklet(tid, obs, h, cfg, cache) for tid, h in tracks.items()]
-    sight = Sight([o.stamp_ns for o in obs], [o.view for o in obs])
-    links = [
-        (a, b)
-        for a, b in stitch_links(summaries, config=cfg.stitch, cut=cut, sight=sight)
-        if a in changed or b in changed
-    ]
-    if not links:
-        return tracks
+    links = stitch_links(summaries, config=cfg.stitch, cut=cut, sight=sight)
+    if among is not None:
+        links = [(a, b) for a, b in links if a in among or b in among]
+        if not links:
+            return tracks
     root = chain_links(list(tracks), links)
     cuts = link_cuts(summaries, links, config=cfg.stitch, sight=sight)
     return join_chains(obs, tracks, root, cuts, cfg)

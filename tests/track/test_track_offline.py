@@ -461,7 +461,8 @@ def test_a_track_the_encounter_re_decision_changed_is_stitched_again():
     their detections after it to a piece that, when stitching ran, held the neighbour; stitching the
     changed tracks again joins that piece to person 5's track. Tracks the re-decision left as they were are
     not stitched again (stitching has judged them)."""
-    from studio.track.offline import _stitch_changed
+    from studio.track.offline import _stitch
+    from studio.track.sight import Sight
 
     nan = np.full(6, np.nan, np.float32)
     obs = [
@@ -477,7 +478,9 @@ def test_a_track_the_encounter_re_decision_changed_is_stitched_again():
     b = [(k, 0) for k in range(54, 100)]
     c = [(k, 1) for k in range(100)]
     tracks = {1: a, 2: b, 3: c}
-    before = {1: a, 2: [(k, 1) for k in range(54, 100)], 3: [(k, 1) for k in range(54)]}
-    cfg = OfflineConfig()
-    assert _stitch_changed(obs, tracks, before, [], cfg, {}) == {1: a + b, 3: c}
-    assert _stitch_changed(obs, tracks, dict(tracks), [], cfg, {}) == tracks
+    sight, cfg = Sight([o.stamp_ns for o in obs], [None] * len(obs)), OfflineConfig()
+    # the re-decision changed tracks 2 and 3 (2 held the neighbour's detections when stitching ran)
+    assert _stitch(obs, tracks, [], sight, cfg, {}, among={2, 3}) == {1: a + b, 3: c}
+    # it changed nothing, or only track 3
+    assert _stitch(obs, tracks, [], sight, cfg, {}, among=set()) == tracks
+    assert _stitch(obs, tracks, [], sight, cfg, {}, among={3}) == tracks
