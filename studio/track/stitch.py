@@ -372,10 +372,15 @@ def _few_against(a: Tracklet, b: Tracklet, cfg: StitchConfig) -> bool:
     described, and their colours where B continues A differ by more than ``few_max_appearance``."""
     if cfg.few_views <= 0 or a.app_end is None or b.app_start is None:
         return False
-    few = lambda t: cfg.few_views <= t.n_app < cfg.min_views  # noqa: E731
-    if not ((few(a) and _described(b, cfg)) or (few(b) and _described(a, cfg))):
+    if not ((_few(a, cfg) and _described(b, cfg)) or (_few(b, cfg) and _described(a, cfg))):
         return False
     return appearance_distance(a.app_end, b.app_start) > cfg.few_max_appearance
+
+
+def _few(t: Tracklet, cfg: StitchConfig) -> bool:
+    """Whether ``t`` is described by ``few_views`` to ``min_views - 1`` observations: too few for its colours
+    to carry a link, enough for two crops that say someone else to refuse one."""
+    return cfg.few_views <= t.n_app < cfg.min_views
 
 
 def _described(t: Tracklet, cfg: StitchConfig) -> bool:
@@ -645,11 +650,10 @@ def _fill_gaps(
         link (:func:`_few_against`)."""
         if cfg.few_views <= 0:
             return False
-        few = [by_id[m] for m in chain if cfg.few_views <= by_id[m].n_app < cfg.min_views]
+        few = [m for m in map(by_id.__getitem__, chain) if _few(m, cfg) and m.app is not None]
         return any(
             appearance_distance(m.app, h.app) > cfg.few_max_appearance  # type: ignore[arg-type]
             for m in few
-            if m.app is not None
             for h in (a, c)
         )
 
