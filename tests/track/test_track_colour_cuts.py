@@ -156,6 +156,40 @@ def test_stamp_jitter_and_dropped_frames_are_no_miss():
     assert cut[5][0][0] == 36  # halfway between frames 32 and 39 (the B colours' first)
 
 
+def test_the_cut_goes_where_the_track_jumped_from_one_person_to_the_other():
+    # moving seed 50 of simulator version 6, frame 558: a track followed person 1 walking past person 4,
+    # who stood 0.4 m behind them on the same bearing; person 1 was hidden and the track went on with person
+    # 4, seen by the laser alone until person 4 walked off, 1.3 s and a 3-frame miss later. The cut at that
+    # miss gave the track 10 frames of person 4: two identity switches
+    obs = []
+    for i in range(80):
+        if i < 30:
+            xy, app = (0.1 * i, 0.0), A  # A walks along x at 1 m/s, described every other frame
+        else:
+            xy, app = (3.0 + 0.1 * max(0, i - 47), 0.4), B  # B stands 0.4 m aside, then walks on
+        described = (i < 30 and i % 2 == 0) or (i >= 50 and i % 2 == 0)
+        obs.append(
+            Observations(
+                T0 + i * 100_000_000,
+                np.array([xy]),
+                np.eye(2)[None] * 0.0025,
+                ("fused",),
+                np.ones(1),
+                (app if described else np.full(6, np.nan))[None].astype(np.float32),
+                np.arange(1),
+            )
+        )
+    hits = [(i, 0) for i in range(80) if not 46 <= i <= 48]  # the longest miss: frames 46-48
+    cut, pairs = cut_colour_changes(obs, {4: hits})
+    assert pairs == [(4, 5)]
+    assert cut[4][-1][0] == 29
+    assert cut[5][0][0] == 30
+    cut, _ = cut_colour_changes(obs, {4: hits}, ColourCutConfig(jump_gain=0.0))  # the rule off
+    assert cut[5][0][0] == 49
+    cut, _ = cut_colour_changes(obs, {4: hits}, ColourCutConfig(jump_gain=0.5))  # a 0.4 m jump is no 0.5
+    assert cut[5][0][0] == 49
+
+
 def test_the_pieces_of_a_tracklet_cut_twice_are_paired_in_time_order():
     C = A + np.array([0.0, 0.0, 30.0, 0.0, 0.0, 0.0])
     obs = _walk(n=90, change=50)
@@ -231,6 +265,10 @@ def test_bad_options_are_refused():
         ColourCutConfig(views=0)
     with pytest.raises(ValueError, match="end_views"):
         ColourCutConfig(end_views=-1)
+    with pytest.raises(ValueError, match="jump_gain"):
+        ColourCutConfig(jump_gain=-0.1)
+    with pytest.raises(ValueError, match="jump_context_s"):
+        ColourCutConfig(jump_context_s=0.0)
 
 
 def _change_by_brute_force(colours, cfg):
