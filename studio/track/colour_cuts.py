@@ -65,6 +65,7 @@ from numpy.typing import NDArray
 
 from studio.track.appearance import appearance_matrix, appearance_rows
 from studio.track.base import Observations
+from studio.track.excursions import straight_velocity
 from studio.track.swaps import Hits
 
 __all__ = ["ColourCutConfig", "colour_change", "cut_colour_changes"]
@@ -257,11 +258,7 @@ def _path_at(
     ``nearest`` (the hit next to the cut) with fewer than three."""
     if len(t) < 3:
         return nearest
-    s = (t - at) * 1e-9
-    ds = s - s.mean()
-    ss = float(ds @ ds)
-    v = (ds @ (xy - xy.mean(axis=0))) / ss if ss > 0 else np.zeros(2)
-    return xy.mean(axis=0) - s.mean() * v
+    return xy.mean(axis=0) + straight_velocity(t, xy) * (at - t.mean()) * 1e-9
 
 
 def cut_colour_changes(

@@ -64,7 +64,7 @@ from studio.track.base import Observations
 from studio.track.fill import track_paths
 from studio.track.swaps import Hits
 
-__all__ = ["ExcursionConfig", "detach_excursions"]
+__all__ = ["ExcursionConfig", "detach_excursions", "straight_velocity"]
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def _end_run(
         if t[-1] - t[k - 1] > cfg.max_s * 1e9:
             continue
         m = t[:k] >= t[k - 1] - cfg.velocity_s * 1e9
-        v = _velocity(t[:k][m], xy[:k][m])
+        v = straight_velocity(t[:k][m], xy[:k][m])
         ahead = xy[k - 1] + np.outer((t[k:] - t[k - 1]) * 1e-9, v)
         off = np.hypot(*(xy[k:] - ahead).T)
         dist = np.array([_nearest_at(others, tm, p, cfg) for tm, p in zip(t[k:], xy[k:], strict=True)])
@@ -283,7 +283,7 @@ def _times_xy(obs: Sequence[Observations], h: Hits, reverse: bool) -> tuple[np.n
     return (-t[::-1], xy[::-1]) if reverse else (t, xy)
 
 
-def _velocity(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
+def straight_velocity(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Least-squares velocity (m/s) through hits at stamps ``t`` (ns); zero without a time span."""
     s = (t - t.mean()) * 1e-9
     ss = float(s @ s)
@@ -306,7 +306,7 @@ def _stood(to: np.ndarray, xyo: np.ndarray, cfg: ExcursionConfig) -> bool:
     """Whether a track stood still at its last hit: at least three hits over the ``velocity_s`` before,
     fitted speed at most ``stood_speed``."""
     m = to >= to[-1] - cfg.velocity_s * 1e9
-    return int(m.sum()) >= 3 and float(np.hypot(*_velocity(to[m], xyo[m]))) <= cfg.stood_speed
+    return int(m.sum()) >= 3 and float(np.hypot(*straight_velocity(to[m], xyo[m]))) <= cfg.stood_speed
 
 
 def _position(
@@ -328,4 +328,4 @@ def _position(
     if to[j] - tm > cfg.max_s * 1e9:
         return None
     m = to[j:] <= to[j] + cfg.velocity_s * 1e9
-    return xyo[j] + _velocity(to[j:][m], xyo[j:][m]) * (tm - to[j]) * 1e-9
+    return xyo[j] + straight_velocity(to[j:][m], xyo[j:][m]) * (tm - to[j]) * 1e-9
