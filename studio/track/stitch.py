@@ -741,9 +741,8 @@ def _fill_gaps(
             if head.start_ns <= cur.start_ns or tail.end_ns >= end.end_ns:
                 continue
             fits = colours_fit(members, by_id[a], end)
-            walked = not fits and walked_through(
-                chain, cur, end, by_id[a]
-            )  # needed only where colours do not fit
+            # needed only where colours do not fit
+            walked = not fits and walked_through(chain, cur, end, by_id[a])
             if not (fits or walked):
                 continue
             j1, j2 = joint(cur, head), joint(tail, end)
